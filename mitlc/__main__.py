@@ -1,0 +1,3 @@
+from mitlc.cli import main
+
+main()
