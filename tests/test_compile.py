@@ -1,0 +1,186 @@
+"""The compiler against the thesis's appendix C nets and rewards (4-12)..(4-18)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mitlc.compile import CompileOptions, compile_spec, trigger
+from mitlc.errors import MitlError
+from mitlc.parse import load_spec, parse_formula, parse_spec
+
+ROOT = Path(__file__).resolve().parent.parent
+FIXTURES = json.loads((Path(__file__).parent / "fixtures" / "thesis_nets.json").read_text())
+PROBLEMS = [k for k in FIXTURES if not k.startswith("_")]
+
+
+def compiled(name: str, conjunction: str = "literal"):
+    spec = load_spec(ROOT / "specs" / "pendulum" / f"{name}.mitl")
+    return compile_spec(spec, CompileOptions(conjunction=conjunction))
+
+
+@pytest.mark.parametrize("name", PROBLEMS)
+def test_net_matches_appendix_c(name: str) -> None:
+    want = FIXTURES[name]
+    net = compiled(name).net
+    assert sorted(net.place_names) == sorted(want["places"])
+    order = [net.place_index(p) for p in want["places"]]
+    got_rows = Counter((tuple(int(v) for v in net.D[t, order]), str(tr.guard)) for t, tr in enumerate(net.transitions))
+    want_rows = Counter((tuple(row), guard) for row, guard in zip(want["D"], want["guards"]))
+    assert got_rows == want_rows
+    assert net.M0[order].tolist() == want["M0"]
+    # D = D+ - D-, with one input and one output place per transition
+    assert np.array_equal(net.D, net.D_plus - net.D_minus)
+    assert (net.D_minus.sum(axis=1) == 1).all() and (net.D_plus.sum(axis=1) == 1).all()
+
+
+@pytest.mark.parametrize("name", PROBLEMS)
+def test_place_kinds(name: str) -> None:
+    net = compiled(name).net
+    for p in net.places:
+        assert p.kind == ("timing" if p.name.startswith(("p_tau", "p_1<")) else "state")
+
+
+def _thesis_reward(name: str, p, pt) -> np.ndarray:
+    """The thesis's printed reward, in terms of token counts now (p) and one step ago (pt)."""
+    if name == "p1_swing_up":  # (4-12)
+        return (1 + pt("p_kappa")) * (p("p_kappa") - p("p_not_kappa"))
+    if name in ("p2_avoid", "p3_avoid_speed_limit"):  # (4-13), (4-16) with (4-14)
+        not_kappa = lambda f: f("p_psi") + f("p_none_kappa_psi")  # noqa: E731
+        not_psi = lambda f: f("p_kappa") + f("p_none_kappa_psi")  # noqa: E731
+        terms = [
+            (1 + pt("p_kappa")) * (p("p_kappa") - not_kappa(p)),
+            10 * (1 + not_psi(pt)) * (not_psi(p) - p("p_psi")),
+        ]
+        if name == "p3_avoid_speed_limit":
+            terms.append(10 * (1 + pt("p_upsilon")) * (p("p_upsilon") - p("p_not_upsilon")))
+        return np.minimum.reduce(terms)
+    if name == "p4_alternate":  # (4-17)
+        region = ["p_kappa", "p_upsilon", "p_psi", "p_none_kappa_upsilon_psi"]
+        others = lambda f, x: sum(f(r) for r in region if r != x)  # noqa: E731
+        return np.minimum.reduce([
+            5 * (1 + pt("p_kappa")) * pt("p_tau_kappa") * (p("p_kappa") - others(p, "p_kappa")),
+            5 * (1 + pt("p_upsilon")) * pt("p_tau_upsilon") * (p("p_upsilon") - others(p, "p_upsilon")),
+            25 * (1 + others(pt, "p_psi")) * (others(p, "p_psi") - p("p_psi")),
+        ])
+    if name == "p5_timed_visit":  # (4-18)
+        return (
+            2 * p("p_tau<=1") * (p("p_not_kappa") - p("p_kappa"))
+            + 3 * p("p_1<tau<=2") * (p("p_kappa") - p("p_not_kappa"))
+            + p("p_tau>2") * (1 + pt("p_not_kappa")) * (p("p_not_kappa") - p("p_kappa"))
+        )
+    raise KeyError(name)
+
+
+@pytest.mark.parametrize("name", PROBLEMS)
+def test_reward_equals_thesis_on_every_reachable_pair(name: str) -> None:
+    rs = compiled(name)
+    net = rs.net
+    pairs = list(net.step_pairs())
+    prev = np.array([a for a, _ in pairs])
+    now = np.array([b for _, b in pairs])
+    p = lambda n: now[:, net.place_index(n)].astype(float)  # noqa: E731
+    pt = lambda n: prev[:, net.place_index(n)].astype(float)  # noqa: E731
+    want = _thesis_reward(name, p, pt)
+    got = rs.reward.evaluate(prev, now)
+    assert len(pairs) >= 4
+    np.testing.assert_array_equal(got, want)
+
+
+def test_reward_by_hand_problem_2() -> None:
+    rs = compiled("p2_avoid")
+    net = rs.net
+    m = lambda *names: np.array([[1 if p in names else 0 for p in net.place_names]])  # noqa: E731
+    # staying in kappa: min((1+1)(1-0), 10 (1+1)(1-0)) = 2
+    assert rs.reward.evaluate(m("p_kappa"), m("p_kappa")).tolist() == [2.0]
+    # entering psi from "none": min((1+0)(0-1), 10 (1+1)(0-1)) = -20
+    assert rs.reward.evaluate(m("p_none_kappa_psi"), m("p_psi")).tolist() == [-20.0]
+    # psi to kappa: min((1+0)(1-0), 10 (1+0)(1-0)) = 1
+    assert rs.reward.evaluate(m("p_psi"), m("p_kappa")).tolist() == [1.0]
+
+
+def test_active_conjunction_problem_4() -> None:
+    """With the active reading the inactive target's zero term leaves the min."""
+    rs = compiled("p4_alternate", conjunction="active")
+    net = rs.net
+    m = lambda *names: np.array([[1 if p in names else 0 for p in net.place_names]])  # noqa: E731
+    # token on tau_kappa, pendulum arrives in kappa: kappa term (1+0)*1*(1-0)*5 = 5,
+    # psi term 25*(1+1)*(1-0) = 50; upsilon term is gated off -> min(5, 50) = 5
+    prev, now = m("p_tau_kappa", "p_none_kappa_upsilon_psi"), m("p_tau_upsilon", "p_kappa")
+    assert rs.reward.evaluate(prev, now).tolist() == [5.0]
+    literal = compiled("p4_alternate").reward.evaluate(prev, now)
+    assert literal.tolist() == [0.0]  # the upsilon term ~p_tau_upsilon * ... = 0 caps the literal min
+
+
+def test_state_groups_follow_disjointness() -> None:
+    assert compiled("p3_avoid_speed_limit").groups == (("kappa", "psi"), ("upsilon",))
+    assert compiled("p4_alternate").groups == (("kappa", "upsilon", "psi"),)
+
+
+def spec_with(formula: str, props: str | None = None) -> str:
+    props = props or (
+        "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
+    )
+    return f"{props}formula {formula}\n"
+
+
+def test_untimed_until_switches_on_right_side() -> None:
+    rs = compile_spec(parse_spec(spec_with("a U c")))
+    net = rs.net
+    (t,) = [t for t in net.transitions if net.subnets[t.subnet].role == "until"]
+    assert str(t.guard) == "c"
+    assert str(rs.reward) == "p_until_U1 * (p_a - p_not_a) + p_after_U1 * (p_c - p_not_c)"
+
+
+def test_bounded_until_has_deadline() -> None:
+    rs = compile_spec(parse_spec(spec_with("a U[0,2] c")))
+    (t,) = [t for t in rs.net.transitions if rs.net.subnets[t.subnet].role == "until"]
+    assert str(t.guard) == "c | tau > 2"
+
+
+def test_eventually_state_formula_has_done_place() -> None:
+    rs = compile_spec(parse_spec(spec_with("F a & G !c")))
+    roles = [s.role for s in rs.net.subnets]
+    assert roles.count("eventually") == 1
+    assert "~p_tau_a * (p_a - " in str(rs.reward)
+
+
+def test_timed_eventually_window() -> None:
+    rs = compile_spec(parse_spec(spec_with("F[1,2] a")))
+    net = rs.net
+    assert [p.name for p in net.places if net.subnets[p.subnet].role == "timeline"] == [
+        "p_tau<1", "p_1<=tau<=2", "p_tau>2"
+    ]
+    (t,) = [t for t in net.transitions if net.subnets[t.subnet].role == "eventually"]
+    assert str(t.guard) == "a & 1 <= tau <= 2"
+
+
+def test_single_recurrence_is_trivial() -> None:
+    rs = compile_spec(parse_spec(spec_with("G F a")))
+    assert [s.role for s in rs.net.subnets] == ["region"]
+    assert str(rs.reward) == "(1 + ~p_a) * (p_a - p_not_a)"
+
+
+def test_three_recurrences_share_one_token() -> None:
+    rs = compile_spec(parse_spec(spec_with("G F a & G F b & G F c")))
+    (cycle,) = [s for s in rs.net.subnets if s.role == "recurrence"]
+    assert len(cycle.places) == 3 and int(rs.net.M0[list(cycle.places)].sum()) == 1
+
+
+def test_negation_pushed_through_duals() -> None:
+    rs = compile_spec(parse_spec(spec_with("!(F a | G !b)")))
+    assert str(rs.normal_form) == "G !a & F b"
+
+
+def test_trigger_of_temporal_right_sides() -> None:
+    assert str(trigger(parse_formula("G a & F b"))) == "a"
+    assert str(trigger(parse_formula("G[1,2] a"))) == "true"
+
+
+def test_unknown_conjunction_reading() -> None:
+    with pytest.raises(MitlError, match="conjunction"):
+        compile_spec(parse_spec(spec_with("a & b")), CompileOptions(conjunction="mean"))
