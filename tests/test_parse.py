@@ -1,0 +1,230 @@
+"""The spec language: precedence, spellings, intervals, settings and clean errors."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mitlc import ast as A
+from mitlc.errors import MitlError, SpecError, SpecSyntaxError
+from mitlc.parse import MAX_DEPTH, load_spec, parse_formula, parse_predicate, parse_spec
+
+a, b, c, d = (A.Atom(n) for n in "abcd")
+
+
+# ----------------------------------------------------------------- precedence
+PRECEDENCE = [
+    ("a & b | c", A.Or(A.And(a, b), c)),
+    ("a | b & c", A.Or(a, A.And(b, c))),
+    ("a -> b -> c", A.Implies(a, A.Implies(b, c))),
+    ("a | b -> c", A.Implies(A.Or(a, b), c)),
+    ("a <-> b -> c", A.Iff(a, A.Implies(b, c))),
+    ("a <-> b <-> c", A.Iff(A.Iff(a, b), c)),
+    ("a & b & c", A.And(A.And(a, b), c)),
+    ("a U b U c", A.Until(a, A.Until(b, c))),
+    ("a U b & c", A.And(A.Until(a, b), c)),
+    ("!a U b", A.Until(A.Not(a), b)),
+    ("F a U b", A.Until(A.Eventually(a), b)),
+    ("G a & b", A.And(A.Globally(a), b)),
+    ("F G a", A.Eventually(A.Globally(a))),
+    ("2 * a & b", A.And(A.Weighted(2, a), b)),
+    ("2 * (a & b)", A.Weighted(2, A.And(a, b))),
+    ("10 * G !a", A.Weighted(10, A.Globally(A.Not(a)))),
+    ("2 * !a U[1,2] b", A.Until(A.Weighted(2, A.Not(a)), b, A.Interval(1, 2))),
+    ("a R b W c", A.Release(a, A.WeakUntil(b, c))),
+    ("!!a", A.Not(A.Not(a))),
+    ("(a)", a),
+    ("true & false", A.And(A.Const(True), A.Const(False))),
+]
+
+
+@pytest.mark.parametrize("text,want", PRECEDENCE)
+def test_precedence(text: str, want: A.Formula) -> None:
+    assert parse_formula(text) == want
+
+
+SPELLINGS = [
+    ("!a", ["~a", "not a", "¬a"]),
+    ("a & b", ["a && b", "a and b", "a ∧ b", "a /\\ b"]),
+    ("a | b", ["a || b", "a or b", "a ∨ b", "a \\/ b"]),
+    ("a -> b", ["a => b", "a implies b", "a → b"]),
+    ("a <-> b", ["a iff b", "a <=> b", "a ↔ b"]),
+    ("F a", ["<> a", "eventually a", "◇a", "◊ a"]),
+    ("G a", ["[] a", "always a", "□a"]),
+    ("a U b", ["a until b"]),
+    ("a R b", ["a release b"]),
+    ("a W b", ["a weak_until b"]),
+    ("F[1,2] a", ["F[1:2] a", "<>[1, 2] a", "eventually[1.0,2.0] a"]),
+    ("G[0,inf) a", ["G[0,infty) a", "G[0, ∞) a", "G a", "G[0,inf] a"]),
+]
+
+
+@pytest.mark.parametrize("canonical,variants", SPELLINGS)
+def test_spellings(canonical: str, variants: list[str]) -> None:
+    want = parse_formula(canonical)
+    for v in variants:
+        assert parse_formula(v) == want, v
+
+
+def test_names_that_start_like_keywords_are_names() -> None:
+    assert parse_formula("Fx & notable | Gamma U Until2") == A.Or(
+        A.And(A.Atom("Fx"), A.Atom("notable")), A.Until(A.Atom("Gamma"), A.Atom("Until2"))
+    )
+
+
+@pytest.mark.parametrize(
+    "text,interval",
+    [
+        ("F[1,2] a", A.Interval(1, 2, True, True)),
+        ("F(1,2] a", A.Interval(1, 2, False, True)),
+        ("F[1,2) a", A.Interval(1, 2, True, False)),
+        ("F(1,2) a", A.Interval(1, 2, False, False)),
+        ("F[0.5,inf) a", A.Interval(0.5, math.inf, True, False)),
+        ("F[2:3] a", A.Interval(2, 3, True, True)),
+        ("F[1,1] a", A.Interval(1, 1, True, True)),
+    ],
+)
+def test_intervals(text: str, interval: A.Interval) -> None:
+    f = parse_formula(text)
+    assert isinstance(f, A.Eventually) and f.interval == interval
+
+
+def test_round_trip_examples() -> None:
+    for text in [t for t, _ in PRECEDENCE] + ["2 * !kappa U(1,2] (3 * kappa U(2,inf) G !kappa)"]:
+        f = parse_formula(text)
+        assert parse_formula(str(f)) == f
+
+
+# ----------------------------------------------------------------- predicates
+def test_predicate_printing_and_chains() -> None:
+    p = parse_predicate("0.3 < q < pi/2 + 0.5 and not abs(qdot) >= 10 or q == -1")
+    assert str(p) == "0.3 < q < 3.141592653589793 / 2 + 0.5 and not abs(qdot) >= 10 or q == -1"
+    assert parse_predicate(str(p)) == p
+
+
+# ----------------------------------------------------------------- specs
+SPEC = """\
+# a comment
+plant pendulum(u_max = 10)   // another comment
+init q in [2.4, pi], qdot = 0
+horizon 3
+option conjunction = active
+prop kappa = abs(q) < 0.3
+prop psi = 0.3 < q < pi/2 + 0.5
+formula F G kappa & 10 * G !psi
+check F G kappa & G !psi
+"""
+
+
+def test_spec_settings() -> None:
+    s = parse_spec(SPEC, "p2.mitl")
+    assert s.plant_name == "pendulum" and s.param("u_max") == 10.0 and s.param("dt") == 0.03
+    assert [(r.var, r.lo, r.hi) for r in s.init] == [("q", 2.4, math.pi), ("qdot", 0.0, 0.0)]
+    assert s.horizon == 3.0
+    assert s.option("conjunction") == "active"
+    assert str(s.monitor_formula) == "F G kappa & G !psi"
+    assert s.warnings == ()
+
+
+def test_unused_proposition_is_a_warning() -> None:
+    s = parse_spec("prop a = x < 1\nprop b = x > 2\nformula G a\n", "w.mitl")
+    assert s.warnings == ("w.mitl:2:6: warning: proposition 'b' is never used",)
+
+
+def test_thesis_specs_load(spec_dir) -> None:
+    for path in sorted((spec_dir / "pendulum").glob("*.mitl")):
+        s = load_spec(path)
+        assert s.plant_name == "pendulum" and s.horizon == 3.0 and not s.warnings
+
+
+# ----------------------------------------------------------------- errors
+ERRORS = [
+    ("formula F G kapa\nprop kappa = q < 1", SpecError, 1, 13, "undefined proposition 'kapa'"),
+    ("prop k = q < 1\nformula F[2,1] k", SpecError, 2, 11, "inverted interval [2,1]"),
+    ("prop k = q < 1\nformula F(1,1] k", SpecError, 2, 11, "empty interval (1,1]"),
+    ("prop k = q < 1\nformula 0 * k", SpecError, 2, 9, "weight 0 must be positive"),
+    ("prop k = q < 1\nformula G[1,2 k", SpecSyntaxError, 2, 15, "expected"),
+    ("prop k = q < 1\nformula k &", SpecSyntaxError, 2, 12, "unexpected end of input"),
+    ("prop k = q < 1\nformula k $ k", SpecSyntaxError, 2, 11, "unexpected character '$'"),
+    ("plant pendulum\nprop k = theta < 1\nformula G k", SpecError, 2, 10, "unknown state variable 'theta'"),
+    ("plant rocket\nprop k = q < 1\nformula G k", SpecError, 1, 7, "unknown plant 'rocket'"),
+    ("plant pendulum(mass = 2)\nprop k = q < 1\nformula G k", SpecError, 1, 16, "no parameter 'mass'"),
+    ("prop k = q + 1\nformula G k", SpecError, 1, 6, "must be a condition"),
+    ("prop k = foo(q) < 1\nformula G k", SpecError, 1, 10, "unknown function 'foo'"),
+    ("prop k = q < 1\nprop k = q > 1\nformula G k", SpecError, 2, 6, "defined twice"),
+    ("prop F = q < 1\nformula G a", SpecError, 1, 6, "reserved word"),
+    ("prop k = q < 1", SpecError, 1, 1, "no 'formula'"),
+    ("prop k = q < 1\nformula G k\nformula F k", SpecError, 3, 9, "more than one 'formula'"),
+    ("plant pendulum\ninit q in [1, 0]\nprop k = q < 1\nformula G k", SpecError, 2, 6, "inverted initial range"),
+    ("prop k = q < 1\noption conjunction = mean\nformula G k", SpecError, 2, 8, "must be one of"),
+]
+
+
+@pytest.mark.parametrize("text,cls,line,col,message", ERRORS)
+def test_errors_are_located(text: str, cls: type, line: int, col: int, message: str) -> None:
+    with pytest.raises(cls) as info:
+        parse_spec(text, "bad.mitl")
+    err = info.value
+    assert (err.file, err.line, err.column) == ("bad.mitl", line, col)
+    assert message in err.message
+    assert err.headline().startswith(f"bad.mitl:{line}:{col}: ")
+
+
+def test_syntax_error_shows_line_and_caret() -> None:
+    with pytest.raises(SpecSyntaxError) as info:
+        parse_spec("prop k = q < 1\nformula G[1,2 k\n", "bad.mitl")
+    assert info.value.render().splitlines() == [
+        "bad.mitl:2:15: syntax error: unexpected 'k', expected ')', ',' or ':', ']'",
+        "  formula G[1,2 k",
+        "                ^",
+    ]
+    assert "expected" in info.value.message and "']'" in info.value.message
+
+
+def test_nesting_too_deep() -> None:
+    text = "prop k = q < 1\nformula " + "!" * (MAX_DEPTH + 5) + "k"
+    with pytest.raises(SpecError, match="nesting too deep"):
+        parse_spec(text)
+    deep = "prop k = q < 1\nformula " + "(" * 5000 + "k" + ")" * 5000
+    parse_spec(deep)  # parentheses alone do not nest the tree
+
+
+# ----------------------------------------------------------------- fuzz
+VALID = SPEC
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.text(max_size=200))
+def test_fuzz_arbitrary_text(text: str) -> None:
+    try:
+        parse_spec(text, "fuzz.mitl")
+    except MitlError as err:
+        assert err.headline().startswith("fuzz.mitl")
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(0, len(VALID) - 1), st.sampled_from(["del", "ins", "rep"]),
+                  st.sampled_from(list("()[],:!&|<>-=*/. \n#FGURW0123456789aqkp") + ["inf", "prop", "U[", "¬", "\t"])),
+        min_size=1,
+        max_size=4,
+    )
+)
+def test_fuzz_mutated_specs(mutations) -> None:
+    text = VALID
+    for pos, op, piece in mutations:
+        pos = min(pos, len(text))
+        if op == "del":
+            text = text[:pos] + text[pos + 1:]
+        elif op == "ins":
+            text = text[:pos] + piece + text[pos:]
+        else:
+            text = text[:pos] + piece + text[pos + len(piece):]
+    try:
+        parse_spec(text, "m.mitl")
+    except MitlError as err:
+        assert err.line is None or err.line >= 1
