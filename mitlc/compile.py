@@ -276,6 +276,7 @@ class _Builder:
         self.spec = spec
         self.options = options
         self.timing: list[_Sub] = []
+        self.cache: dict[object, list[str]] = {}  # one timing sub-net per distinct subformula
         self.used_names: set[str] = set()
         self.counter = 0
         names = A.atoms(formula)
@@ -465,15 +466,18 @@ class _Builder:
             factors.append(self._seg_tokens(window, prev=True))
         inner = self.reward(f.child, ctx, under_g)
         if is_state_formula(f.child) and not under_g:
-            label = self._label(f.child, "F")
-            pending = self._unique(f"p_tau_{label}")
-            done = self._unique(f"p_done_{label}")
-            guard = Guard((GuardTerm(_strip(f.child), f.interval if timed else None),))
-            self.timing.append(
-                _Sub(f"eventually {label}", "timing", "eventually", [(pending, f"tau,{label}"), (done, f"done,{label}")],
-                     [(0, 1, guard)], 0, str(f))
-            )
-            factors.insert(0, _tokens([pending], prev=True))
+            key = ("eventually", _strip(f.child), f.interval)
+            if key not in self.cache:
+                label = self._label(f.child, "F")
+                pending = self._unique(f"p_tau_{label}")
+                done = self._unique(f"p_done_{label}")
+                guard = Guard((GuardTerm(_strip(f.child), f.interval if timed else None),))
+                self.timing.append(
+                    _Sub(f"eventually {label}", "timing", "eventually",
+                         [(pending, f"tau,{label}"), (done, f"done,{label}")], [(0, 1, guard)], 0, str(f))
+                )
+                self.cache[key] = [pending, done]
+            factors.insert(0, _tokens([self.cache[key][0]], prev=True))
         if not factors:
             return inner  # the thesis's trivial one-place net, dropped
         gate = factors[0] if len(factors) == 1 else R.Prod(tuple(factors))
@@ -497,18 +501,21 @@ class _Builder:
                 else:
                     terms.append(R.Gated(self._seg_tokens(phase), sub))
             return terms[0] if len(terms) == 1 else R.Sum(tuple(terms))
-        label = self._label(f, "U")
-        left_place = self._unique(f"p_until_{label}")
-        right_place = self._unique(f"p_after_{label}")
-        terms_g = [GuardTerm(trigger(f.right))]
-        if not math.isinf(f.interval.hi):
-            terms_g.append(GuardTerm(clock=A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed)))
-        if terms_g[0].state == A.Const(True):
-            terms_g = [GuardTerm()]
-        self.timing.append(
-            _Sub(f"until {label}", "timing", "until", [(left_place, f"{label},1"), (right_place, f"{label},2")],
-                 [(0, 1, Guard(tuple(terms_g)))], 0, str(f))
-        )
+        key = ("until", trigger(f.right), f.interval)  # the net depends on nothing else
+        if key not in self.cache:
+            label = self._label(f, "U")
+            terms_g = [GuardTerm(key[1])]
+            if not math.isinf(f.interval.hi):
+                terms_g.append(GuardTerm(clock=A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed)))
+            if terms_g[0].state == A.Const(True):
+                terms_g = [GuardTerm()]
+            names = [self._unique(f"p_until_{label}"), self._unique(f"p_after_{label}")]
+            self.timing.append(
+                _Sub(f"until {label}", "timing", "until", [(names[0], f"{label},1"), (names[1], f"{label},2")],
+                     [(0, 1, Guard(tuple(terms_g)))], 0, str(f))
+            )
+            self.cache[key] = names
+        left_place, right_place = self.cache[key]
         return R.Sum(
             (
                 R.Gated(_tokens([left_place]), self.reward(f.left, ctx, under_g)),
@@ -530,14 +537,18 @@ class _Builder:
         cyc = [(i, r) for i, r in recurrences if r is not None]
         terms: dict[int, R.RExpr] = {}
         if len(cyc) >= 2:
-            labels = [self._label(phi, "GF") for _, (_, phi) in cyc]
-            names = [self._unique(f"p_tau_{lab}") for lab in labels]
-            n = len(names)
-            arcs = [(j, (j + 1) % n, Guard.state(_strip(phi))) for j, (_, (_, phi)) in enumerate(cyc)]
-            self.timing.append(
-                _Sub("recurrence", "timing", "recurrence", [(nm, f"tau,{lab}") for nm, lab in zip(names, labels)],
-                     arcs, 0, " & ".join(str(parts[i]) for i, _ in cyc))
-            )
+            key = ("recurrence",) + tuple(_strip(phi) for _, (_, phi) in cyc)
+            if key not in self.cache:
+                labels = [self._label(phi, "GF") for _, (_, phi) in cyc]
+                names = [self._unique(f"p_tau_{lab}") for lab in labels]
+                n = len(names)
+                arcs = [(j, (j + 1) % n, Guard.state(_strip(phi))) for j, (_, (_, phi)) in enumerate(cyc)]
+                self.timing.append(
+                    _Sub("recurrence", "timing", "recurrence", [(nm, f"tau,{lab}") for nm, lab in zip(names, labels)],
+                         arcs, 0, " & ".join(str(parts[i]) for i, _ in cyc))
+                )
+                self.cache[key] = names
+            names = self.cache[key]
             for (i, (w, phi)), name in zip(cyc, names):
                 terms[i] = R.Gated(_tokens([name], prev=True), R.scale(w, self._bonus(phi, ctx, True)))
         for i, p in enumerate(parts):
