@@ -1,0 +1,288 @@
+"""The runtime against hand-computed markings and rewards; the plants against their equations."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mitlc.compile import CompileOptions, compile_spec
+from mitlc.parse import parse_spec
+from mitlc.plants import PLANTS, wrap_angle
+from mitlc.runtime import NetRuntime
+
+P1 = """
+plant pendulum(u_max = 3)
+init q = pi, qdot = 0
+prop kappa = abs(q) < 0.3
+formula F G kappa
+"""
+
+P2 = """
+plant pendulum(u_max = 10)
+init q in [2.4, pi], qdot = 0
+prop kappa = abs(q) < 0.3
+prop psi   = 0.3 < q < pi/2 + 0.5
+formula F G kappa & 10 * G !psi
+"""
+
+P3 = """
+plant pendulum(u_max = 10)
+init q in [2.4, pi], qdot = 0
+prop kappa   = abs(q) < 0.3
+prop psi     = 0.3 < q < pi/2 + 0.5
+prop upsilon = abs(qdot) < 10
+formula F G kappa & 10 * G !psi & 10 * G upsilon
+"""
+
+P4 = """
+plant pendulum(u_max = 10)
+init q in [-0.3, 0.3], qdot = 0
+prop kappa   = -pi/2 - 0.5 < q < -pi/2 + 0.3
+prop upsilon = pi/2 - 0.3 < q < pi/2 + 0.5
+prop psi     = -pi < q < -pi/2 - 0.5 or pi/2 + 0.5 < q < pi
+formula 5 * G F kappa & 5 * G F upsilon & 25 * G !psi
+"""
+
+P5 = """
+plant pendulum(u_max = 10)
+init q in [-pi/2, pi/2], qdot = 0
+prop kappa = -pi < q < -pi + 0.5 or pi - 0.5 < q < pi
+formula 2 * !kappa U(1,2] (3 * kappa U(2,inf) G !kappa)
+"""
+
+SPECS = {"p1": P1, "p2": P2, "p3": P3, "p4": P4, "p5": P5}
+
+
+def runtime(text: str, conjunction: str = "literal") -> NetRuntime:
+    return NetRuntime(compile_spec(parse_spec(text), CompileOptions(conjunction=conjunction)))
+
+
+def states(qs, qdots=None) -> np.ndarray:
+    qdots = [0.0] * len(qs) if qdots is None else qdots
+    return np.array([[q, qd] for q, qd in zip(qs, qdots)], dtype=float)
+
+
+def trace(rt: NetRuntime, x0: float, steps: list[tuple[float, float]], qdot0: float = 0.0):
+    """Run one trajectory given as (tau_k+1, q_k+1) pairs; return markings and rewards."""
+    M = rt.reset(states([x0], [qdot0]))
+    marks, rewards = [M[0].tolist()], []
+    for tau, q in steps:
+        M1 = rt.step(M, states([q]), tau)
+        rewards.append(float(rt.reward(M, M1)[0]))
+        marks.append(M1[0].tolist())
+        M = M1
+    return marks, rewards
+
+
+# ------------------------------------------------------------------ hand-computed traces
+
+
+def test_p1_trace():
+    rt = runtime(P1)
+    assert rt.net.place_names == ("p_kappa", "p_not_kappa")
+    # r = (1 + ~p_kappa)(p_kappa - p_not_kappa)    (4-12)
+    marks, rewards = trace(rt, math.pi, [(0.03, 2.0), (0.06, 0.2), (0.09, -0.1), (0.12, 0.5), (0.15, 0.5)])
+    assert marks == [[0, 1], [0, 1], [1, 0], [1, 0], [0, 1], [0, 1]]
+    assert rewards == [-1.0, 1.0, 2.0, -2.0, -1.0]
+
+
+def test_p2_trace():
+    rt = runtime(P2)
+    assert rt.net.place_names == ("p_kappa", "p_psi", "p_none_kappa_psi")
+    # (4-13): min((1 + ~pk)(pk - pnk), 10 (1 + ~pnpsi)(pnpsi - ppsi)), pnk = ppsi + pnone, pnpsi = pk + pnone
+    marks, rewards = trace(rt, 2.77, [(0.03, 1.0), (0.06, 1.0), (0.09, 0.1), (0.12, 0.0), (0.15, -1.0)])
+    assert marks == [[0, 0, 1], [0, 1, 0], [0, 1, 0], [1, 0, 0], [1, 0, 0], [0, 0, 1]]
+    assert rewards == [-20.0, -10.0, 1.0, 2.0, -2.0]
+
+
+def test_p3_two_region_nets_move_together():
+    rt = runtime(P3)
+    assert rt.net.place_names == ("p_kappa", "p_psi", "p_none_kappa_psi", "p_upsilon", "p_not_upsilon")
+    M = rt.reset(states([2.77], [0.0]))
+    assert M.tolist() == [[0, 0, 1, 1, 0]]
+    M1 = rt.step(M, states([0.1], [12.0]), 0.03)  # kappa, too fast
+    assert M1.tolist() == [[1, 0, 0, 0, 1]]
+    # min(1 * (1 - 0), 10 * (1 + 1) * (1 - 0), 10 * (1 + 1) * (0 - 1))
+    assert rt.reward(M, M1).tolist() == [-20.0]
+
+
+@pytest.mark.parametrize(
+    "conjunction, expected",
+    [("literal", [0.0, -5.0, 0.0, -50.0]), ("active", [5.0, -5.0, 5.0, -50.0])],
+)
+def test_p4_recurrence_and_gated_min(conjunction, expected):
+    rt = runtime(P4, conjunction)
+    assert rt.net.place_names == (
+        "p_tau_kappa", "p_tau_upsilon", "p_kappa", "p_upsilon", "p_psi", "p_none_kappa_upsilon_psi",
+    )
+    marks, rewards = trace(rt, 0.0, [(0.03, -1.5), (0.06, -1.5), (0.09, 1.5), (0.12, 3.0)])
+    assert marks == [
+        [1, 0, 0, 0, 0, 1],
+        [0, 1, 1, 0, 0, 0],  # kappa reached: the timing token moves on to upsilon
+        [0, 1, 1, 0, 0, 0],
+        [1, 0, 0, 1, 0, 0],  # upsilon reached: back to kappa
+        [1, 0, 0, 0, 1, 0],
+    ]
+    assert rewards == expected
+
+
+def test_p5_timeline_moves_one_place_per_step():
+    rt = runtime(P5)
+    assert rt.net.place_names == ("p_tau<=1", "p_1<tau<=2", "p_tau>2", "p_kappa", "p_not_kappa")
+    # (4-18): 2 p_tau<1 (pnk - pk) + 3 p_1<tau<2 (pk - pnk) + p_tau>2 (1 + ~pnk)(pnk - pk)
+    steps = [(0.5, 0.0), (1.0, 3.0), (1.2, 3.0), (2.5, 3.0), (2.6, 3.0), (2.7, 0.0), (2.8, 0.0)]
+    marks, rewards = trace(rt, 0.0, steps)
+    assert marks == [
+        [1, 0, 0, 0, 1],
+        [1, 0, 0, 0, 1],
+        [1, 0, 0, 1, 0],  # tau = 1 is not > 1: still in the first phase
+        [0, 1, 0, 1, 0],
+        [0, 0, 1, 1, 0],
+        [0, 0, 1, 1, 0],
+        [0, 0, 1, 0, 1],
+        [0, 0, 1, 0, 1],
+    ]
+    assert rewards == [2.0, -2.0, 3.0, -1.0, -1.0, 1.0, 2.0]
+
+
+def test_p5_jump_over_two_thresholds_takes_two_steps():
+    rt = runtime(P5)
+    M = rt.reset(states([0.0]))
+    M1 = rt.step(M, states([0.0]), 2.5)
+    assert M1.tolist() == [[0, 1, 0, 0, 1]]
+    M2 = rt.step(M1, states([0.0]), 2.5)
+    assert M2.tolist() == [[0, 0, 1, 0, 1]]
+
+
+def test_reset_puts_state_tokens_on_the_region():
+    rt = runtime(P2)
+    M = rt.reset(states([0.0, 1.0, 2.77, -3.0]))
+    assert M.tolist() == [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 1]]
+    rt5 = runtime(P5)
+    assert rt5.reset(states([3.0]))[0].tolist() == [1, 0, 0, 1, 0]
+
+
+def test_truth_is_per_run():
+    rt = runtime(P3)
+    t = rt.truth(states([0.0, 1.0, 3.0], [0.0, 11.0, -9.0]))
+    assert t["kappa"].tolist() == [True, False, False]
+    assert t["psi"].tolist() == [False, True, False]
+    assert t["upsilon"].tolist() == [True, False, True]
+
+
+def test_bad_marking_is_rejected():
+    rt = runtime(P2)
+    with pytest.raises(ValueError):
+        rt.step(np.array([[1, 1, 0]]), states([0.0]), 0.03)
+
+
+@pytest.mark.parametrize("name", sorted(SPECS))
+@pytest.mark.parametrize("conjunction", ["literal", "active"])
+def test_tables_agree_with_the_direct_rule(name, conjunction):
+    rt = runtime(SPECS[name], conjunction)
+    assert rt.tables is not None
+    rng = np.random.default_rng(7)
+    R = 64
+    x = np.column_stack([rng.uniform(-math.pi, math.pi, R), rng.uniform(-15, 15, R)])
+    M = rt.reset(x)
+    for k in range(60):
+        x = np.column_stack([rng.uniform(-math.pi, math.pi, R), rng.uniform(-15, 15, R)])
+        tau = rng.uniform(0, 3.2, R) if k % 2 else 0.05 * (k + 1)
+        fast = rt.step(M, x, tau)
+        slow = rt.step_direct(M, x, tau)
+        np.testing.assert_array_equal(fast, slow)
+        code, code1 = rt.encode(M), rt.encode(fast)
+        np.testing.assert_array_equal(rt.reward_code(code, code1), rt.reward(M, fast))
+        np.testing.assert_array_equal(rt.decode(code1), fast)
+        assert (fast.sum(axis=1) == rt.n_subnets).all()
+        M = fast
+
+
+def test_marked_places():
+    rt = runtime(P5)
+    M = rt.reset(states([0.0, 3.0]))
+    np.testing.assert_array_equal(rt.marked_places(rt.encode(M)), [[0, 4], [0, 3]])
+
+
+# ------------------------------------------------------------------ plants
+
+
+PEND = PLANTS["pendulum"]
+MD = PLANTS["mass-damper"]
+
+
+def test_pendulum_equation_a2():
+    p = PEND.params()
+    x = np.array([[0.4, -2.0], [-2.5, 7.0]])
+    u = np.array([1.5, -3.0])
+    xdot = PEND.dynamics(x, u, p)
+    J, M, g, l, b, K, R = (p[k] for k in ("J", "M", "g", "l", "b", "K", "R"))
+    for i in range(2):
+        q, qd = x[i]
+        qdd = (M * g * l * math.sin(q) - (b + K * K / R) * qd + K / R * u[i]) / J
+        assert xdot[i, 0] == pytest.approx(qd)
+        assert xdot[i, 1] == pytest.approx(qdd, rel=1e-12)
+
+
+def test_mass_damper_equation_a1_against_exact_solution():
+    p = MD.params({"u_max": 10.0})
+    x = np.array([[0.3, 1.0]])
+    u = np.array([0.7])
+    Mm, B, dt = p["M"], p["B"], p["dt"]
+    out = MD.step(x.copy(), u, p)
+    a = B / Mm
+    v_inf = u[0] / B
+    v = v_inf + (1.0 - v_inf) * math.exp(-a * dt)
+    q = 0.3 + v_inf * dt + (1.0 - v_inf) * (1 - math.exp(-a * dt)) / a
+    assert out[0, 1] == pytest.approx(v, abs=1e-10)
+    assert out[0, 0] == pytest.approx(q, abs=1e-10)
+
+
+def _fine_reference(x: np.ndarray, u: np.ndarray, p: dict, substeps: int = 2000) -> np.ndarray:
+    fine = dict(p, dt=p["dt"] / substeps)
+    y = x.copy()
+    for _ in range(substeps):  # unwrapped, unclipped RK4 with a tiny step
+        k1 = PEND.dynamics(y, u, fine)
+        k2 = PEND.dynamics(y + 0.5 * fine["dt"] * k1, u, fine)
+        k3 = PEND.dynamics(y + 0.5 * fine["dt"] * k2, u, fine)
+        k4 = PEND.dynamics(y + fine["dt"] * k3, u, fine)
+        y = y + fine["dt"] / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return y
+
+
+def test_pendulum_rk4_against_fine_step_reference():
+    p = PEND.params({"u_max": 10.0})
+    x = np.array([[math.pi - 0.01, 0.0], [0.2, 3.0], [-1.0, -5.0]])
+    u = np.array([10.0, -4.0, 0.0])
+    ref = _fine_reference(x, u, p)
+    out = PEND.step(x.copy(), u, p)
+    np.testing.assert_allclose(out[:, 1], ref[:, 1], atol=2e-3)
+    np.testing.assert_allclose(wrap_angle(out[:, 0] - ref[:, 0]), 0.0, atol=1e-4)
+
+
+def test_pendulum_falls_from_upright_and_rests_at_bottom():
+    p = PEND.params()
+    x = np.array([[1e-3, 0.0]])
+    assert PEND.step(x.copy(), np.zeros(1), p)[0, 1] > 0  # gravity pulls away from upright
+    bottom = np.array([[-math.pi, 0.0]])
+    np.testing.assert_allclose(PEND.step(bottom.copy(), np.zeros(1), p), bottom, atol=1e-12)
+
+
+def test_pendulum_angle_is_wrapped():
+    p = PEND.params({"u_max": 10.0})
+    x = np.array([[math.pi - 0.01, 5.0], [-math.pi + 0.01, -5.0]])
+    out = PEND.step(x.copy(), np.zeros(2), p)
+    assert (out[:, 0] >= -math.pi).all() and (out[:, 0] < math.pi).all()
+    assert out[0, 0] < 0 and out[1, 0] > 0  # crossed the bottom
+    np.testing.assert_allclose(wrap_angle(np.array([3 * math.pi, -3 * math.pi + 0.1])), [-math.pi, -math.pi + 0.1])
+
+
+def test_pendulum_input_saturates_and_velocity_is_bounded():
+    p = PEND.params({"u_max": 3.0})
+    x = np.array([[0.0, 0.0]])
+    np.testing.assert_array_equal(PEND.step(x.copy(), np.array([100.0]), p), PEND.step(x.copy(), np.array([3.0]), p))
+    fast = np.array([[0.0, 15 * math.pi]])
+    out = PEND.step(fast.copy(), np.array([3.0]), PEND.params({"u_max": 3.0}))
+    assert abs(out[0, 1]) <= 15 * math.pi
