@@ -18,7 +18,7 @@ Steps (docs/semantics.md explains each):
 ... prop kappa = abs(q) < 0.3
 ... formula F G kappa'''))
 >>> rs.net.place_names, rs.net.D.tolist()
-(('p_kappa', 'p_not_kappa'), [[1, -1], [-1, 1]])
+(('p_kappa', 'p_not_kappa'), [[-1, 1], [1, -1]])
 >>> print(rs.reward)
 (1 + ~p_kappa) * (p_kappa - p_not_kappa)
 """
@@ -201,12 +201,11 @@ def state_groups(spec: Spec, names: Sequence[str]) -> tuple[tuple[str, ...], ...
 
 def _covers(spec: Spec, members: Sequence[str]) -> bool:
     """True if the members' regions provably cover the whole state space."""
-    doms = spec.domains()
     preds = [spec.prop(m).pred for m in members]
     union = preds[0]
     for p in preds[1:]:
         union = P.POr(union, p)
-    return P.provably_disjoint(P.PNot(union), P.PNot(union), doms) if P.region(union, doms) is not None else False
+    return P.provably_empty(P.PNot(union), spec.domains())
 
 
 # ------------------------------------------------------------------ threshold timeline
@@ -284,11 +283,8 @@ class _Builder:
             spec.prop(n)  # undefined propositions were caught by the parser
         self.groups = state_groups(spec, names)
         self.state: list[_Sub] = [self._region_net(g) for g in self.groups]
+        # atom -> (places where it holds, places where it does not)
         self.where: dict[str, tuple[list[str], list[str]]] = {}
-        for sub in self.state:
-            all_names = [n for n, _ in sub.places]
-            for atom_place in all_names:
-                pass
         for g, sub in zip(self.groups, self.state):
             all_names = [n for n, _ in sub.places]
             for a in g:
@@ -342,11 +338,9 @@ class _Builder:
         point = self._init_point()
         if point is not None:
             for i, a in enumerate(group):
-                try:
-                    if bool(P.evaluate(self.spec.prop(a).pred, point)):
-                        return i
-                except KeyError:
-                    break
+                pred = self.spec.prop(a).pred
+                if all(v.name in point for v in P.variables(pred)) and bool(P.evaluate(pred, point)):
+                    return i
         return len(group) if not _covers(self.spec, group) else 0
 
     def _init_point(self) -> dict[str, float] | None:

@@ -49,6 +49,7 @@ __all__ = [
     "Region",
     "region",
     "provably_disjoint",
+    "provably_empty",
 ]
 
 
@@ -577,3 +578,14 @@ def provably_disjoint(a: Pred, b: Pred, domains: Domains | None = None) -> bool:
     if ra is None or rb is None:
         return False
     return not _and(ra, rb, doms)
+
+
+def provably_empty(p: Pred, domains: Domains | None = None) -> bool:
+    """True if interval analysis proves that ``p`` holds nowhere in the domains.
+
+    >>> from mitlc.predicates import Compare, Var, Num, PNot
+    >>> provably_empty(PNot(Compare((Var("q"), Num(9.0)), ("<",))), {"q": IntervalSet.of(-3.2, 3.2)})
+    True
+    """
+    r = region(p, domains or {})
+    return r is not None and not r
