@@ -11,7 +11,7 @@ G (a -> F[0,2.5] b) & !c
 >>> parse_formula("F[2,1] a")
 Traceback (most recent call last):
   ...
-mitlc.errors.SpecError: <spec>:1:2: error: inverted interval [2,1]: the lower end must not exceed the upper
+mitlc.errors.SpecError: <spec>:1:3: error: inverted interval [2,1]: the lower end must not exceed the upper
 """
 
 from __future__ import annotations
@@ -198,7 +198,7 @@ class _Build(Transformer):
         (tok,) = children
         name = str(tok)
         if name in P.CONSTANTS:
-            return P.Num(P.CONSTANTS[name])
+            return P.Num(P.CONSTANTS[name], name=name)
         return P.Var(name, pos=_pos(tok))
 
     def call(self, children: list[Any]) -> P.Pred:

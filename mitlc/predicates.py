@@ -74,10 +74,11 @@ def _wrap(node: "Pred", min_prec: int) -> str:
 @dataclass(frozen=True, slots=True)
 class Num(Pred):
     value: float
+    name: str | None = field(default=None, compare=False)  # "pi" prints as pi
     prec = _P_ATOM
 
     def __str__(self) -> str:
-        return fmt_number(self.value)
+        return self.name or fmt_number(self.value)
 
 
 @dataclass(frozen=True, slots=True)

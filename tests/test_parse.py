@@ -101,7 +101,7 @@ def test_round_trip_examples() -> None:
 # ----------------------------------------------------------------- predicates
 def test_predicate_printing_and_chains() -> None:
     p = parse_predicate("0.3 < q < pi/2 + 0.5 and not abs(qdot) >= 10 or q == -1")
-    assert str(p) == "0.3 < q < 3.141592653589793 / 2 + 0.5 and not abs(qdot) >= 10 or q == -1"
+    assert str(p) == "0.3 < q < pi / 2 + 0.5 and not abs(qdot) >= 10 or q == -1"
     assert parse_predicate(str(p)) == p
 
 
