@@ -1,0 +1,106 @@
+"""Properties of the compiler over random formulas (depth <= 6, 4 propositions)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mitlc import ast as A
+from mitlc.compile import compile_spec
+from mitlc.parse import parse_formula, parse_spec
+
+PROPS = "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
+
+intervals = st.builds(
+    lambda lo, width, lc, hc, unbounded: A.Interval(lo, math.inf if unbounded else lo + width, lc, hc),
+    st.sampled_from([0.0, 0.5, 1.0, 2.0]),
+    st.sampled_from([0.0, 0.5, 1.0, 3.0]),
+    st.booleans(),
+    st.booleans(),
+    st.booleans(),
+).filter(lambda i: i.lo < i.hi or (i.lo_closed and i.hi_closed))
+
+
+def formulas(depth: int = 6) -> st.SearchStrategy[A.Formula]:
+    leaves = st.one_of(st.sampled_from([A.Atom(n) for n in "abcd"]), st.sampled_from([A.Const(True), A.Const(False)]))
+
+    def extend(inner: st.SearchStrategy[A.Formula]) -> st.SearchStrategy[A.Formula]:
+        return st.one_of(
+            st.builds(A.Not, inner),
+            st.builds(A.Weighted, st.sampled_from([0.5, 2.0, 10.0]), inner),
+            st.builds(A.Eventually, inner, intervals),
+            st.builds(A.Globally, inner, intervals),
+            st.builds(A.And, inner, inner),
+            st.builds(A.Or, inner, inner),
+            st.builds(A.Implies, inner, inner),
+            st.builds(A.Iff, inner, inner),
+            st.builds(A.Until, inner, inner, intervals),
+            st.builds(A.Release, inner, inner, intervals),
+            st.builds(A.WeakUntil, inner, inner, intervals),
+        )
+
+    return st.recursive(leaves, extend, max_leaves=12).filter(lambda f: A.depth(f) <= depth)
+
+
+def subnet_invariants(net) -> None:
+    """Every sub-net holds one token, initially and after any firing."""
+    for s_idx, sub in enumerate(net.subnets):
+        assert int(net.M0[list(sub.places)].sum()) == 1
+        for t in sub.transitions:
+            row = net.D[t]
+            inside = row[list(sub.places)]
+            assert inside.sum() == 0 and sorted(inside[inside != 0].tolist()) == [-1, 1]
+            outside = np.delete(row, list(sub.places))
+            assert not outside.any(), "a transition touches another sub-net"
+    covered = sorted(i for sub in net.subnets for i in sub.places)
+    assert covered == list(range(len(net.places)))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(formulas())
+def test_random_formulas_compile(f: A.Formula) -> None:
+    spec = parse_spec(PROPS + f"formula {f}\n", "random.mitl")
+    assert spec.formula == f
+    rs = compile_spec(spec)
+    net = rs.net
+    subnet_invariants(net)
+    assert net.D.shape == (len(net.transitions), len(net.places))
+    # the reward is finite on every one-step move from M0
+    m0 = net.M0[None, :]
+    moves = [m0]
+    for t in range(len(net.transitions)):
+        if (net.D_minus[t] <= net.M0).all():
+            moves.append(net.fire(net.M0, np.eye(len(net.transitions), dtype=np.int64)[t])[None, :])
+    now = np.concatenate(moves)
+    prev = np.repeat(m0, len(now), axis=0)
+    values = rs.reward.evaluate(prev, now)
+    assert np.isfinite(values).all()
+    # the reward prints as text
+    assert str(rs.reward)
+
+
+@settings(max_examples=150, deadline=None)
+@given(formulas(depth=4))
+def test_reachable_markings_keep_one_token_per_subnet(f: A.Formula) -> None:
+    rs = compile_spec(parse_spec(PROPS + f"formula {f}\n"))
+    net = rs.net
+    if np.prod([len(s.places) for s in net.subnets]) > 4096:
+        return
+    for m in net.reachable_markings():
+        for sub in net.subnets:
+            assert int(m[list(sub.places)].sum()) == 1
+
+
+def test_size_grows_linearly() -> None:
+    """Nested <-> would double the formula; shared sub-nets keep the net linear."""
+    counts, sizes = [], []
+    f: A.Formula = parse_formula("F a U b")
+    for _ in range(6):
+        f = A.Iff(f, A.Until(A.Eventually(A.Atom("c")), A.Atom("d")))
+        sizes.append(A.size(parse_spec(PROPS + f"formula {f}\n").formula))
+        counts.append(len(compile_spec(parse_spec(PROPS + f"formula {f}\n")).net.places))
+    assert sizes[-1] == 6 * 3 + 2  # the formula as written grows linearly ...
+    assert counts == [18] * 6  # ... and so does the net: the desugared copies share sub-nets
