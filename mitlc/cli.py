@@ -70,8 +70,10 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
               help="Write to this file (atomically) instead of standard output.")
 @click.option("--conjunction", type=click.Choice(["literal", "active"]), default=None,
               help="How '&' combines gated terms (overrides the spec's option).")
+@click.option("--violations", type=click.Choice(["off", "permanent", "counted"]), default=None,
+              help="Track violations of safety and deadline parts (overrides the spec's option).")
 @handle_errors
-def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None) -> None:
+def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None, violations: str | None) -> None:
     """Compile SPEC (.mitl) into a reward Petri net and reward expression."""
     from mitlc import export
     from mitlc.compile import CompileOptions, compile_spec
@@ -80,7 +82,7 @@ def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None
     s = load_spec(spec)
     for w in s.warnings:
         click.echo(w, err=True)
-    rs = compile_spec(s, CompileOptions.from_spec(s, conjunction=conjunction))
+    rs = compile_spec(s, CompileOptions.from_spec(s, conjunction=conjunction, violations=violations))
     if fmt in ("svg", "png"):
         from mitlc.render import render_bytes
 

@@ -37,7 +37,7 @@ from mitlc import predicates as P
 from mitlc import reward as R
 from mitlc.errors import CompileError
 from mitlc.net import Guard, GuardTerm, Net, Place, SubNet, Transition
-from mitlc.passes import is_state_formula, normal_form
+from mitlc.passes import is_state_formula, normal_form, push_negations
 from mitlc.spec import Spec
 
 __all__ = ["CompileOptions", "RewardSystem", "compile_spec", "reward_reading", "state_groups"]
@@ -51,9 +51,15 @@ class CompileOptions:
     """``literal``: ``&`` is the min over all terms, as (4-13)..(4-17).
     ``active``: the min over the terms whose timing gate is open (docs/semantics.md)."""
 
+    violations: str = "off"
+    """``off``: the thesis's nets.  ``permanent``: an absorbing violated place per
+    safety or deadline part and a penalty large enough that no violating run
+    out-earns a satisfying one.  ``counted``: safety parts count their violations
+    (docs/semantics.md, section 6)."""
+
     @staticmethod
     def from_spec(spec: Spec, **overrides: str | None) -> "CompileOptions":
-        values = {"conjunction": spec.option("conjunction")}
+        values = {"conjunction": spec.option("conjunction"), "violations": spec.option("violations")}
         values.update({k: v for k, v in overrides.items() if v is not None})
         return CompileOptions(**values)
 
@@ -68,6 +74,8 @@ class RewardSystem:
     reward: R.RExpr
     groups: tuple[tuple[str, ...], ...]
     options: CompileOptions
+    penalty: float = 0.0
+    """The one-time penalty for each violation (0 without ``violations``)."""
 
     @property
     def atoms(self) -> tuple[str, ...]:
@@ -261,9 +269,23 @@ class _Sub:
     kind: str
     role: str
     places: list[tuple[str, str]]  # (name, label)
-    arcs: list[tuple[int, int, Guard]]  # local src, local dst, guard
+    arcs: list[tuple[int, int | tuple[int, ...], Guard]]  # local src, local dst(s), guard
     initial: int
     formula: str = ""
+
+
+def _negate_state(f: A.Formula) -> A.Formula:
+    return push_negations(A.Not(f))
+
+
+def _complement_clock(i: A.Interval) -> list[A.Interval]:
+    """The clock outside ``i``: up to two intervals."""
+    out = []
+    if i.lo > 0 or not i.lo_closed:
+        out.append(A.Interval(0.0, i.lo, True, not i.lo_closed))
+    if not math.isinf(i.hi):
+        out.append(A.Interval(i.hi, math.inf, not i.hi_closed))
+    return out
 
 
 def _tokens(names: Sequence[str], prev: bool = False) -> R.Tokens:
@@ -275,6 +297,9 @@ class _Builder:
         self.spec = spec
         self.options = options
         self.timing: list[_Sub] = []
+        self.violation_nets: list[_Sub] = []
+        self.penalties: list[str] = []  # places whose new tokens are penalised
+        self.end = _last_sample(spec)
         self.cache: dict[object, list[str]] = {}  # one timing sub-net per distinct subformula
         self.used_names: set[str] = set()
         self.counter = 0
@@ -308,6 +333,8 @@ class _Builder:
         _, core = _peel(f)
         if isinstance(core, A.Atom):
             return core.name
+        if isinstance(core, A.Not) and isinstance(core.child, A.Atom):
+            return f"not_{core.child.name}"
         self.counter += 1
         return f"{prefix}{self.counter}"
 
@@ -399,7 +426,14 @@ class _Builder:
         raise CompileError(f"not a state formula: {f}")
 
     # -- rewards
-    def reward(self, f: A.Formula, ctx: frozenset[int], under_g: bool) -> R.RExpr:
+    def reward(self, f: A.Formula, ctx: frozenset[int], under_g: bool, conj: bool = False) -> R.RExpr:
+        """The reward of ``f`` active on timeline segments ``ctx``.
+
+        ``under_g``: ``f`` sits under an always (its eventually nets get no done place).
+        ``conj``: ``f`` must hold for the whole formula to hold (it is reached from
+        the root through ``&``, weights and timeline phases only), so its
+        violations may be tracked.
+        """
         if isinstance(f, A.Const):
             return R.Const(1.0 if f.value else -1.0)
         if isinstance(f, A.Atom):
@@ -411,20 +445,20 @@ class _Builder:
             pos, neg = self.where[f.child.name]
             return R.Sum((_tokens(neg), R.Neg(_tokens(pos))))
         if isinstance(f, A.Weighted):
-            inner = self.reward(f.child, ctx, under_g)
+            inner = self.reward(f.child, ctx, under_g, conj)
             if isinstance(inner, R.Gated):
                 return R.Gated(inner.gate, R.scale(f.weight, inner.expr))
             return R.scale(f.weight, inner)
         if isinstance(f, A.And):
-            return self._and(f, ctx, under_g)
+            return self._and(f, ctx, under_g, conj)
         if isinstance(f, A.Or):
             return R.Max(tuple(self.reward(c, ctx, under_g) for c in _flatten(f, A.Or)))
         if isinstance(f, A.Globally):
-            return self._globally(f, ctx, under_g)
+            return self._globally(f, ctx, under_g, conj)
         if isinstance(f, A.Eventually):
-            return self._eventually(f, ctx, under_g)
+            return self._eventually(f, ctx, under_g, conj)
         if isinstance(f, A.Until):
-            return self._until(f, ctx, under_g)
+            return self._until(f, ctx, under_g, conj)
         raise CompileError(f"cannot compile {type(f).__name__}")
 
     def _bonus(self, f: A.Formula, ctx: frozenset[int], under_g: bool) -> R.RExpr:
@@ -441,16 +475,19 @@ class _Builder:
             return R.ZERO
         return R.Gated(self._seg_tokens(p, prev), expr)
 
-    def _globally(self, f: A.Globally, ctx: frozenset[int], under_g: bool) -> R.RExpr:
+    def _globally(self, f: A.Globally, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
         rec = _recurrence(f)
         if rec is not None:  # a lone G F phi: its one-place cycle is trivial and dropped
             w, phi = rec
             return R.scale(w, self._bonus(phi, ctx, True))
         phase = self._phase(f.interval) if self.segments else ctx
         inner_ctx = (phase & ctx) or ctx
+        if conj and is_state_formula(f.child) and (phase & ctx or not self.segments):
+            self._watch(f"G_{self._label(f.child, '')}", _negate_state(_strip(f.child)), inner_ctx, str(f),
+                        counted=True)
         return self._gate(phase, ctx, self._bonus(f.child, inner_ctx, True))
 
-    def _eventually(self, f: A.Eventually, ctx: frozenset[int], under_g: bool) -> R.RExpr:
+    def _eventually(self, f: A.Eventually, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
         timed = not f.interval.is_unbounded
         factors: list[R.RExpr] = []
         if timed:
@@ -459,6 +496,12 @@ class _Builder:
                 return R.ZERO
             factors.append(self._seg_tokens(window, prev=True))
         inner = self.reward(f.child, ctx, under_g)
+        if conj and not timed and isinstance(f.child, A.Globally) and f.child.interval.is_unbounded \
+                and is_state_formula(f.child.child) and self.end is not None:
+            # F G phi on a finite trial: phi must hold at the last sample
+            end = A.Interval(self.end, math.inf)
+            self._watch(f"FG_{self._label(f.child.child, '')}", _negate_state(_strip(f.child.child)), None,
+                        str(f), clock=end)
         if is_state_formula(f.child) and not under_g:
             key = ("eventually", _strip(f.child), f.interval)
             if key not in self.cache:
@@ -471,23 +514,28 @@ class _Builder:
                          [(pending, f"tau,{label}"), (done, f"done,{label}")], [(0, 1, guard)], 0, str(f))
                 )
                 self.cache[key] = [pending, done]
+            if conj:
+                self._late(key, f)
             factors.insert(0, _tokens([self.cache[key][0]], prev=True))
         if not factors:
             return inner  # the thesis's trivial one-place net, dropped
         gate = factors[0] if len(factors) == 1 else R.Prod(tuple(factors))
         return R.Gated(gate, inner)
 
-    def _until(self, f: A.Until, ctx: frozenset[int], under_g: bool) -> R.RExpr:
+    def _until(self, f: A.Until, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
         lo = _lower(f.interval)
         if lo is not None:  # time-triggered switch on the timeline (the thesis's C-5)
             k = self.thresholds.index(lo) + 1
             before = frozenset(range(k)) & ctx
             after = frozenset(range(k, len(self.segments))) & ctx
+            if conj and before and is_state_formula(f.left):
+                self._watch(f"U_{self._label(f.left, '')}", _negate_state(_strip(f.left)), before, str(f),
+                            counted=True)
             terms: list[R.RExpr] = []
             for phase, side in ((before, f.left), (after, f.right)):
                 if not phase:
                     continue
-                sub = self.reward(side, phase, under_g)
+                sub = self.reward(side, phase, under_g, conj and side is f.right)
                 if phase == ctx:
                     terms.append(sub)
                 elif self._gated_within(sub, phase):
@@ -495,21 +543,36 @@ class _Builder:
                 else:
                     terms.append(R.Gated(self._seg_tokens(phase), sub))
             return terms[0] if len(terms) == 1 else R.Sum(tuple(terms))
-        key = ("until", trigger(f.right), f.interval)  # the net depends on nothing else
+        watch = conj and self.options.violations != "off"
+        left_cond = _strip(f.left) if watch and is_state_formula(f.left) else None
+        # the net depends on nothing else (the left side only where its failure is watched)
+        key = ("until", trigger(f.right), f.interval, left_cond, watch)
         if key not in self.cache:
             label = self._label(f, "U")
-            terms_g = [GuardTerm(key[1])]
+            switch = [GuardTerm(key[1])] if key[1] != A.Const(True) else [GuardTerm()]
+            deadline = None
             if not math.isinf(f.interval.hi):
-                terms_g.append(GuardTerm(clock=A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed)))
-            if terms_g[0].state == A.Const(True):
-                terms_g = [GuardTerm()]
+                deadline = GuardTerm(clock=A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed))
             names = [self._unique(f"p_until_{label}"), self._unique(f"p_after_{label}")]
-            self.timing.append(
-                _Sub(f"until {label}", "timing", "until", [(names[0], f"{label},1"), (names[1], f"{label},2")],
-                     [(0, 1, Guard(tuple(terms_g)))], 0, str(f))
-            )
+            places = [(names[0], f"{label},1"), (names[1], f"{label},2")]
+            arcs: list[tuple[int, int | tuple[int, ...], Guard]] = []
+            if not watch:
+                arcs.append((0, 1, Guard(tuple(switch + ([deadline] if deadline and switch[0].state else [])))))
+            else:
+                arcs.append((0, 1, Guard(tuple(switch))))
+                fail: list[GuardTerm] = []
+                if left_cond is not None and key[1] != A.Const(True):
+                    fail.append(GuardTerm(_conj(_negate_state(left_cond), _negate_state(key[1]))))
+                if deadline is not None:
+                    fail.append(deadline)
+                if fail:
+                    failed = self._unique(f"p_failed_{label}")
+                    places.append((failed, f"{label},failed"))
+                    arcs.append((0, 2, Guard(tuple(fail))))
+                    self.penalties.append(failed)
+            self.timing.append(_Sub(f"until {label}", "timing", "until", places, arcs, 0, str(f)))
             self.cache[key] = names
-        left_place, right_place = self.cache[key]
+        left_place, right_place = self.cache[key][:2]
         return R.Sum(
             (
                 R.Gated(_tokens([left_place]), self.reward(f.left, ctx, under_g)),
@@ -525,7 +588,7 @@ class _Builder:
             for t in terms
         )
 
-    def _and(self, f: A.And, ctx: frozenset[int], under_g: bool) -> R.RExpr:
+    def _and(self, f: A.And, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
         parts = _flatten(f, A.And)
         recurrences = [(i, _recurrence(p)) for i, p in enumerate(parts)]
         cyc = [(i, r) for i, r in recurrences if r is not None]
@@ -547,14 +610,76 @@ class _Builder:
                 terms[i] = R.Gated(_tokens([name], prev=True), R.scale(w, self._bonus(phi, ctx, True)))
         for i, p in enumerate(parts):
             if i not in terms:
-                terms[i] = self.reward(p, ctx, under_g)
+                terms[i] = self.reward(p, ctx, under_g, conj)
         return R.Min(tuple(terms[i] for i in range(len(parts))), active=self.options.conjunction == "active")
+
+    # -- violations (docs/semantics.md, section 6)
+    def _segments_clock(self, segs: frozenset[int] | None) -> A.Interval | None:
+        """The clock interval covered by contiguous timeline segments (None: all time)."""
+        if not self.segments or segs is None or len(segs) == len(self.segments):
+            return None
+        first, last = min(segs), max(segs)
+        if first == 0:
+            lo, lo_closed = 0.0, True
+        else:
+            th = self.thresholds[first - 1]
+            lo, lo_closed = th.value, not th.strict
+        if last == len(self.segments) - 1:
+            return A.Interval(lo, math.inf, lo_closed)
+        th = self.thresholds[last]
+        return A.Interval(lo, th.value, lo_closed, th.strict)
+
+    def _watch(self, label: str, bad: A.Formula, segs: frozenset[int] | None, text: str,
+               counted: bool = False, clock: A.Interval | None = None) -> None:
+        """A violation sub-net: it records that ``bad`` held while the part was active."""
+        mode = self.options.violations
+        if mode == "off":
+            return
+        key = ("watch", bad, segs, clock)
+        if key in self.cache:
+            return
+        clock = clock if clock is not None else self._segments_clock(segs)
+        guard = Guard((GuardTerm(bad, clock),))
+        ok = self._unique(f"p_ok_{label}")
+        if mode == "counted" and counted:
+            bad_place, count = self._unique(f"p_bad_{label}"), self._unique(f"p_count_{label}")
+            back = Guard((GuardTerm(_negate_state(bad)),)
+                         + tuple(GuardTerm(clock=c) for c in (_complement_clock(clock) if clock else [])))
+            sub = _Sub(f"violations {label}", "violation", "violation",
+                       [(ok, f"ok,{label}"), (bad_place, f"bad,{label}"), (count, f"count,{label}")],
+                       [(0, (1, 2), guard), (1, 0, back)], 0, text)
+            self.penalties.append(count)
+        else:
+            viol = self._unique(f"p_violated_{label}")
+            sub = _Sub(f"violations {label}", "violation", "violation",
+                       [(ok, f"ok,{label}"), (viol, f"violated,{label}")], [(0, 1, guard)], 0, text)
+            self.penalties.append(viol)
+        self.cache[key] = [ok]
+        self.violation_nets.append(sub)
+
+    def _late(self, key: tuple, f: A.Eventually) -> None:
+        """Give an eventually net a ``late`` place: the deadline passed before it was met."""
+        if self.options.violations == "off" or ("late",) + key in self.cache:
+            return
+        if not math.isinf(f.interval.hi):
+            deadline = A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed)
+        elif self.end is not None:
+            deadline = A.Interval(self.end, math.inf)
+        else:
+            return
+        sub = next(s for s in self.timing if s.places and s.places[0][0] == self.cache[key][0])
+        label = sub.places[0][1].split(",", 1)[1]
+        late = self._unique(f"p_late_{label}")
+        sub.places.append((late, f"late,{label}"))
+        sub.arcs.append((0, len(sub.places) - 1, Guard.clock(deadline)))
+        self.penalties.append(late)
+        self.cache[("late",) + key] = [late]
 
     # -- assembly
     def assemble(self, reward: R.RExpr) -> tuple[Net, R.RExpr]:
-        subs = self.timing + self.state
+        subs = self.timing + self.state + self.violation_nets
         places: list[Place] = []
-        transitions: list[tuple[str, Guard, str, str, int]] = []
+        transitions: list[tuple[str, Guard, str, tuple[str, ...], int]] = []
         m0: list[int] = []
         subnets: list[SubNet] = []
         for s_idx, sub in enumerate(subs):
@@ -564,7 +689,8 @@ class _Builder:
                 m0.append(1 if k == sub.initial else 0)
             t_base = len(transitions)
             for src, dst, guard in sub.arcs:
-                transitions.append((f"t{len(transitions) + 1}", guard, sub.places[src][0], sub.places[dst][0], s_idx))
+                outs = tuple(sub.places[d][0] for d in (dst if isinstance(dst, tuple) else (dst,)))
+                transitions.append((f"t{len(transitions) + 1}", guard, sub.places[src][0], outs, s_idx))
             subnets.append(
                 SubNet(sub.name, sub.kind, sub.role, tuple(range(base, len(places))),
                        tuple(range(t_base, len(transitions))), sub.formula)
@@ -573,10 +699,11 @@ class _Builder:
         d_minus = np.zeros((len(transitions), len(places)), dtype=np.int64)
         d_plus = np.zeros_like(d_minus)
         trans = []
-        for t, (name, guard, src, dst, s_idx) in enumerate(transitions):
+        for t, (name, guard, src, outs, s_idx) in enumerate(transitions):
             d_minus[t, index[src]] = 1
-            d_plus[t, index[dst]] = 1
-            trans.append(Transition(name, guard, (src,), (dst,), s_idx))
+            for dst in outs:
+                d_plus[t, index[dst]] = 1
+            trans.append(Transition(name, guard, (src,), outs, s_idx))
         net = Net(tuple(places), tuple(trans), tuple(subnets), d_minus, d_plus, np.array(m0, dtype=np.int64))
         return net, _resolve(reward, index)
 
@@ -599,10 +726,37 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
     options = options or CompileOptions.from_spec(spec)
     if options.conjunction not in ("literal", "active"):
         raise CompileError(f"unknown conjunction reading '{options.conjunction}' (literal or active)")
+    if options.violations not in ("off", "permanent", "counted"):
+        raise CompileError(f"unknown violations mode '{options.violations}' (off, permanent or counted)")
+    if options.violations != "off" and _last_sample(spec) is None:
+        raise CompileError(
+            f"--violations {options.violations} needs the trial length: give the spec a 'horizon' and a 'plant'",
+            file=spec.path,
+        )
     nf = normal_form(spec.formula)
     formula = reward_reading(nf)
     builder = _Builder(spec, options, formula)
     everything = builder._all() if builder.segments else frozenset()
-    reward = builder.reward(formula, everything, under_g=False)
+    reward = builder.reward(formula, everything, under_g=False, conj=True)
+    penalty = 0.0
+    if builder.penalties:
+        lo, hi = R.bounds(reward)
+        steps = _steps(spec)
+        penalty = steps * (hi - lo) + 1.0
+        new = [R.Sum((_tokens([p]), R.Neg(_tokens([p], prev=True)))) for p in builder.penalties]
+        reward = R.Sum((reward, R.Neg(R.scale(penalty, new[0] if len(new) == 1 else R.Sum(tuple(new))))))
     net, reward = builder.assemble(reward)
-    return RewardSystem(spec, nf, net, reward, builder.groups, options)
+    return RewardSystem(spec, nf, net, reward, builder.groups, options, penalty)
+
+
+def _steps(spec: Spec) -> int:
+    """Number of steps in a trial, ``round(horizon / dt)``."""
+    return int(round(spec.horizon / spec.param("dt")))  # type: ignore[operator]
+
+
+def _last_sample(spec: Spec) -> float | None:
+    """A clock threshold that only the last sample of a trial passes (half a step before it)."""
+    if spec.horizon is None or spec.plant is None:
+        return None
+    dt = spec.param("dt")
+    return (_steps(spec) - 0.5) * dt

@@ -103,12 +103,12 @@ def to_text(rs: RewardSystem) -> str:
     for i, s in enumerate(net.subnets):
         places = ", ".join(net.places[j].name for j in s.places)
         what = f"  [{s.formula}]" if s.formula else ""
-        out.append(f"  {i}  {s.kind:6}  {s.role:10}  {places}{what}")
+        out.append(f"  {i}  {s.kind:9}  {s.role:10}  {places}{what}")
     out.append("")
     out.append(f"places ({len(net.places)}):")
     pw = max((len(p.name) for p in net.places), default=1)
     for i, p in enumerate(net.places):
-        out.append(f"  {p.name.ljust(pw)}  {p.kind:6}  sub-net {p.subnet}  M0={int(net.M0[i])}")
+        out.append(f"  {p.name.ljust(pw)}  {p.kind:9}  sub-net {p.subnet}  M0={int(net.M0[i])}")
     out.append("")
     out.append(f"transitions ({len(net.transitions)}):")
     tw = max((len(t.name) for t in net.transitions), default=1)

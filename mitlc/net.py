@@ -128,7 +128,12 @@ class Guard:
     def __str__(self) -> str:
         if len(self.terms) == 1:
             return str(self.terms[0])
-        return " | ".join(f"({t})" if t.state is not None and t.clock is not None else str(t) for t in self.terms)
+
+        def part(t: GuardTerm) -> str:
+            compound = t.state is not None and (t.clock is not None or t.state.prec < 5)
+            return f"({t})" if compound else str(t)
+
+        return " | ".join(part(t) for t in self.terms)
 
 
 @dataclass(frozen=True, slots=True)

@@ -3,7 +3,7 @@
 :func:`to_digraph` returns a :class:`graphviz.Digraph` and writes nothing:
 places are circles showing their initial tokens, transitions are black bars
 labelled with their guards, and each sub-net is a cluster (state sub-nets
-blue, timing sub-nets orange).  :func:`render_bytes` runs the ``dot`` binary.
+blue, timing sub-nets orange, violation sub-nets red).  :func:`render_bytes` runs the ``dot`` binary.
 
 >>> from mitlc.parse import parse_spec
 >>> from mitlc.compile import compile_spec
@@ -21,7 +21,11 @@ from mitlc.errors import InputError
 
 __all__ = ["to_digraph", "render_bytes"]
 
-_COLORS = {"state": ("#e8f0fe", "#1a56db"), "timing": ("#fff4e5", "#c2410c")}
+_COLORS = {
+    "state": ("#e8f0fe", "#1a56db"),
+    "timing": ("#fff4e5", "#c2410c"),
+    "violation": ("#fde8e8", "#b91c1c"),
+}
 
 
 def _place_label(name: str, tokens: int) -> str:

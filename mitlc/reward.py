@@ -23,7 +23,7 @@ import numpy as np
 
 from mitlc.ast import fmt_number
 
-__all__ = ["RExpr", "Const", "Tokens", "Sum", "Prod", "Neg", "Min", "Max", "Gated", "ONE", "ZERO"]
+__all__ = ["bounds", "scale", "RExpr", "Const", "Tokens", "Sum", "Prod", "Neg", "Min", "Max", "Gated", "ONE", "ZERO"]
 
 
 class RExpr:
@@ -236,3 +236,38 @@ def scale(w: float, e: RExpr) -> RExpr:
             return Prod((Const(w * e.factors[0].value),) + e.factors[1:])
         return Prod((Const(w),) + e.factors)
     return Prod((Const(w), e))
+
+
+def bounds(e: RExpr) -> tuple[float, float]:
+    """Interval bounds of ``e`` when every token count is 0 or 1 (one token per sub-net).
+
+    >>> bounds(Prod((Sum((ONE, Tokens((0,), ("a",), True))), Sum((Tokens((0,), ("a",)), Neg(Tokens((1,), ("b",))))))))
+    (-2.0, 2.0)
+    """
+    if isinstance(e, Const):
+        return e.value, e.value
+    if isinstance(e, Tokens):
+        return 0.0, 1.0
+    if isinstance(e, Neg):
+        lo, hi = bounds(e.arg)
+        return -hi, -lo
+    if isinstance(e, Sum):
+        pairs = [bounds(t) for t in e.terms]
+        return sum(p[0] for p in pairs), sum(p[1] for p in pairs)
+    if isinstance(e, (Prod, Gated)):
+        lo, hi = 1.0, 1.0
+        for f in e.children:
+            flo, fhi = bounds(f)
+            corners = (lo * flo, lo * fhi, hi * flo, hi * fhi)
+            lo, hi = min(corners), max(corners)
+        return lo, hi
+    if isinstance(e, Min):
+        pairs = [bounds(t) for t in e.terms]
+        lo, hi = min(p[0] for p in pairs), min(p[1] for p in pairs)
+        if e.active:  # a closed term leaves the min, and with none open the reward is 0
+            lo, hi = min(lo, 0.0), max(max(p[1] for p in pairs), 0.0)
+        return lo, hi
+    if isinstance(e, Max):
+        pairs = [bounds(t) for t in e.terms]
+        return max(p[0] for p in pairs), max(p[1] for p in pairs)
+    raise TypeError(f"not a reward expression: {e!r}")

@@ -29,6 +29,7 @@ __all__ = ["PropDef", "InitRange", "Spec", "OPTIONS"]
 
 OPTIONS: dict[str, tuple[str, ...]] = {
     "conjunction": ("literal", "active"),
+    "violations": ("off", "permanent", "counted"),
 }
 """Spec options (``option NAME = VALUE``) and their allowed values; the first is the default."""
 
