@@ -1,0 +1,111 @@
+"""Violation-aware reward nets (option violations)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mitlc.compile import CompileOptions, compile_spec
+from mitlc.errors import CompileError
+from mitlc.parse import load_spec, parse_spec
+
+ROOT = Path(__file__).resolve().parent.parent
+
+# problem 2 with unit weights: the reward (4-15)
+P2_UNIT = """\
+plant pendulum(u_max = 10)
+init q in [2.4, pi], qdot = 0
+horizon 3
+prop kappa = abs(q) < 0.3
+prop psi   = 0.3 < q < pi/2 + 0.5
+formula F G kappa & G !psi
+"""
+
+
+def marking(net, *names: str) -> np.ndarray:
+    return np.array([[1 if p in names else 0 for p in net.place_names]])
+
+
+def test_off_is_the_thesis_net() -> None:
+    spec = load_spec(ROOT / "specs" / "pendulum" / "p2_avoid.mitl")
+    assert compile_spec(spec).net.place_names == compile_spec(spec, CompileOptions(violations="off")).net.place_names
+    assert compile_spec(spec).penalty == 0.0
+
+
+def test_permanent_places_guards_and_penalty() -> None:
+    rs = compile_spec(parse_spec(P2_UNIT), CompileOptions(violations="permanent"))
+    net = rs.net
+    watch = {t.outputs: str(t.guard) for t in net.transitions if net.subnets[t.subnet].role == "violation"}
+    assert watch == {
+        ("p_violated_FG_kappa",): "!kappa & tau >= 2.985",
+        ("p_violated_G_not_psi",): "psi",
+    }
+    assert {p.kind for p in net.places if "violated" in p.name or "p_ok" in p.name} == {"violation"}
+    # r in [-2, 2] per step, 100 steps: C = 100 * 4 + 1
+    assert rs.penalty == 401.0
+
+
+def test_permanent_reward_by_hand() -> None:
+    rs = compile_spec(parse_spec(P2_UNIT), CompileOptions(violations="permanent"))
+    net = rs.net
+    ok = ("p_ok_FG_kappa", "p_ok_G_not_psi")
+    # entering psi from "none": min((1+0)(0-1), (1+1)(0-1)) = -2, and the violation costs 401
+    prev = marking(net, "p_none_kappa_psi", *ok)
+    now = marking(net, "p_psi", "p_ok_FG_kappa", "p_violated_G_not_psi")
+    assert rs.reward.evaluate(prev, now).tolist() == [-2.0 - 401.0]
+    # afterwards the token stays: no further penalty, only the base reward
+    prev2 = now
+    now2 = marking(net, "p_kappa", "p_ok_FG_kappa", "p_violated_G_not_psi")
+    assert rs.reward.evaluate(prev2, now2).tolist() == [1.0]
+
+
+def test_counted_counts_separate_violations() -> None:
+    rs = compile_spec(parse_spec(P2_UNIT), CompileOptions(violations="counted"))
+    net = rs.net
+    (enter,) = [t for t in net.transitions if t.outputs == ("p_bad_G_not_psi", "p_count_G_not_psi")]
+    (leave,) = [t for t in net.transitions if t.inputs == ("p_bad_G_not_psi",)]
+    assert str(enter.guard) == "psi" and str(leave.guard) == "!psi"
+    T = np.eye(len(net.transitions), dtype=np.int64)
+    i_enter, i_leave = net.transition_names.index(enter.name), net.transition_names.index(leave.name)
+    m = net.M0.copy()
+    for _ in range(3):
+        m = net.fire(m, T[i_enter])
+        m = net.fire(m, T[i_leave])
+    assert m[net.place_index("p_count_G_not_psi")] == 3
+    assert m[net.place_index("p_ok_G_not_psi")] == 1
+
+
+def test_deadlines_of_eventually_and_until() -> None:
+    spec = parse_spec("plant pendulum\nhorizon 3\nprop a = q < 0\nprop b = q > 1\n"
+                      "formula F[0,2] a & F b & (a U[0,1] b)\n")
+    rs = compile_spec(spec, CompileOptions(violations="permanent"))
+    guards = {(t.inputs, t.outputs): str(t.guard) for t in rs.net.transitions}
+    assert guards[(("p_tau_a",), ("p_late_a",))] == "tau > 2"
+    assert guards[(("p_tau_b",), ("p_late_b",))] == "tau >= 2.985"
+    assert guards[(("p_until_U1",), ("p_after_U1",))] == "b"
+    assert guards[(("p_until_U1",), ("p_failed_U1",))] == "(!a & !b) | tau > 1"
+
+
+def test_timed_until_watches_its_phases() -> None:
+    rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"),
+                      CompileOptions(violations="permanent"))
+    watch = sorted(str(t.guard) for t in rs.net.transitions if rs.net.subnets[t.subnet].role == "violation")
+    assert watch == ["!kappa & 1 < tau <= 2", "kappa & tau <= 1", "kappa & tau > 2"]
+
+
+def test_disjunctions_are_not_watched() -> None:
+    spec = parse_spec("plant pendulum\nhorizon 3\nprop a = q < 0\nprop b = q > 1\nformula G a | G b\n")
+    rs = compile_spec(spec, CompileOptions(violations="permanent"))
+    assert not [s for s in rs.net.subnets if s.role == "violation"] and rs.penalty == 0.0
+
+
+def test_violations_need_a_horizon() -> None:
+    with pytest.raises(CompileError, match="needs the trial length"):
+        compile_spec(parse_spec("prop a = x < 0\nformula G a\n"), CompileOptions(violations="permanent"))
+
+
+def test_spec_option() -> None:
+    rs = compile_spec(parse_spec("option violations = counted\n" + P2_UNIT))
+    assert rs.options.violations == "counted"
