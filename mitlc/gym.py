@@ -1,0 +1,376 @@
+"""Use a compiled reward system with any Gymnasium environment.
+
+:class:`MitlRewardWrapper` steps the reward net (one :class:`~mitlc.runtime.NetRuntime`
+run) alongside a Gymnasium environment:
+
+=================  =====================================================================
+what               with the wrapper
+=================  =====================================================================
+reward             ``r(M_k, M_k+1)``, the compiled reward; the environment's own reward
+                   is kept in ``info["env_reward"]``
+observation        ``{"obs": obs, "marking": M_k}`` (``Dict`` of the env's space and a
+                   ``MultiBinary(places)``), or with ``marking_obs="box"`` one flat
+                   ``Box``: the flattened observation followed by the marking
+``info``           ``marking`` (``M_k``, int8, in ``net.place_names`` order), ``tau``
+                   (``k * dt``), ``env_reward``, and ``verdict``: the monitor's verdict
+                   on ``x_0 .. x_k`` (when :mod:`mitlc.monitor` is available)
+``reset``          the net goes back to its initial marking: timing tokens at ``M0``,
+                   state tokens on the region of ``x_0``
+=================  =====================================================================
+
+The spec's state variables are read off each observation by ``observe``:
+a function ``obs -> {variable: value}`` such as :func:`pendulum_v1_state`, or a
+dict mapping each variable to an index into the flattened observation or to a
+function ``obs -> float``.  The clock is ``tau_k = k * dt``, with ``dt`` the
+environment's ``dt`` attribute (``Pendulum-v1``: 0.05 s) unless given, else the
+spec plant's ``dt``.
+
+Gymnasium is an optional dependency: ``pip install 'mitlc[gym]'``.
+
+>>> import gymnasium as gym
+>>> from mitlc.parse import parse_spec
+>>> spec = parse_spec('''
+... plant pendulum
+... prop kappa = abs(q) < 0.3
+... formula F G kappa''')
+>>> env = MitlRewardWrapper(gym.make("Pendulum-v1"), spec, pendulum_v1_state)
+>>> env.place_names
+('p_kappa', 'p_not_kappa')
+>>> obs, info = env.reset(seed=1)             # starts near upright: q = 0.074
+>>> round(float(pendulum_v1_state(obs["obs"])["q"]), 3), obs["marking"].tolist()
+(0.074, [1, 0])
+>>> obs, reward, terminated, truncated, info = env.step(np.array([0.0], dtype=np.float32))
+>>> reward, info["marking"].tolist(), info["tau"], bool(info["verdict"]["satisfied"])
+(2.0, [1, 0], 0.05, True)
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+from typing import Any, Callable, Mapping, SupportsFloat, Union
+
+import numpy as np
+
+try:
+    import gymnasium as gym
+    from gymnasium import spaces
+except ImportError as exc:  # pragma: no cover - exercised in a subprocess by tests/test_gym.py
+    raise ImportError(
+        "mitlc.gym needs Gymnasium, an optional dependency: pip install 'mitlc[gym]'"
+    ) from exc
+
+from mitlc import predicates as P
+from mitlc.compile import RewardSystem, compile_spec
+from mitlc.errors import InputError
+from mitlc.parse import load_spec
+from mitlc.plants import wrap_angle
+from mitlc.runtime import NetRuntime
+from mitlc.spec import Spec
+
+__all__ = ["MitlRewardWrapper", "pendulum_v1_state", "Observe", "MARKING_OBS", "VERDICT"]
+
+Observe = Union[
+    Callable[[Any], Mapping[str, float]],
+    Mapping[str, Union[int, Callable[[Any], float]]],
+]
+"""How to read the spec's state variables off an observation."""
+
+MARKING_OBS = ("dict", "box")
+"""How the marking joins the observation: a ``Dict`` space or one flat ``Box``."""
+
+VERDICT = ("step", "end", "off")
+"""When ``info["verdict"]`` is computed: every step, at the end of an episode, never."""
+
+
+def pendulum_v1_state(obs: Any) -> dict[str, np.ndarray]:
+    """Gymnasium ``Pendulum-v1`` observation ``[cos th, sin th, thdot]`` -> ``{"q", "qdot"}``.
+
+    Gymnasium's ``theta = 0`` is upright and positive ``thdot`` increases theta,
+    as for the spec's pendulum (``q`` from upright).  ``q = atan2(sin, cos)``
+    wrapped to ``[-pi, pi)``.  Works on one observation or a batch ``(..., 3)``.
+
+    >>> pendulum_v1_state(np.array([-1.0, 0.0, 0.5], dtype=np.float32))
+    {'q': array(-3.14159265), 'qdot': array(0.5)}
+    >>> pendulum_v1_state(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -2.0]]))["q"].round(4)
+    array([0.    , 1.5708])
+    """
+    o = np.asarray(obs, dtype=float)
+    if o.shape[-1:] != (3,):
+        raise InputError(f"a Pendulum-v1 observation has 3 entries [cos th, sin th, thdot], got shape {o.shape}")
+    return {"q": np.asarray(wrap_angle(np.arctan2(o[..., 1], o[..., 0]))), "qdot": o[..., 2]}
+
+
+def _reward_system(spec: RewardSystem | Spec | str | os.PathLike) -> RewardSystem:
+    if isinstance(spec, RewardSystem):
+        return spec
+    if isinstance(spec, Spec):
+        return compile_spec(spec)
+    if isinstance(spec, (str, os.PathLike)):
+        return compile_spec(load_spec(spec))
+    raise InputError(
+        f"expected a RewardSystem, a Spec or the path of a .mitl file, got {type(spec).__name__}"
+    )
+
+
+def _state_names(spec: Spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(columns of a state vector, the variables the propositions read)."""
+    used = {v.name for p in spec.props for v in P.variables(p.pred)}
+    plant = spec.plant
+    columns = plant.state_names if plant is not None else tuple(sorted(used))
+    return tuple(columns), tuple(n for n in columns if n in used)
+
+
+def _positive_dt(value: Any, where: str) -> float:
+    try:
+        dt = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{where} must be a number of seconds, got {value!r}") from None
+    if not (math.isfinite(dt) and dt > 0):
+        raise InputError(f"{where} must be positive and finite, got {dt}")
+    return dt
+
+
+class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Replace an environment's reward by a compiled MITL reward and show the marking.
+
+    Parameters
+    ----------
+    env:
+        Any Gymnasium environment.
+    spec:
+        A compiled :class:`~mitlc.compile.RewardSystem`, a :class:`~mitlc.spec.Spec`
+        or the path of a ``.mitl`` file.
+    observe:
+        ``obs -> {variable: value}``, or ``{variable: index or (obs -> value)}``
+        with indices into the flattened observation.  Every state variable a
+        proposition reads must be given; angles of the spec's plant are wrapped
+        to ``[-pi, pi)``.
+    marking_obs:
+        ``"dict"``: observations ``{"obs": ..., "marking": ...}``; ``"box"``: one
+        flat ``Box``, the flattened observation then the marking.
+    dt:
+        Seconds per step (the clock is ``tau_k = k * dt``); default the
+        environment's ``dt`` attribute, else the spec plant's ``dt``.
+    verdict:
+        ``"step"``: ``info["verdict"]`` after every step (the monitor re-reads
+        the whole trace, so a step costs time linear in its length); ``"end"``:
+        only when the episode terminates or is truncated; ``"off"``: never.
+    truncate_at_horizon:
+        Also truncate the episode when ``tau`` reaches the spec's ``horizon``.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        spec: RewardSystem | Spec | str | os.PathLike,
+        observe: Observe,
+        marking_obs: str = "dict",
+        dt: float | None = None,
+        *,
+        verdict: str = "step",
+        truncate_at_horizon: bool = False,
+    ) -> None:
+        gym.utils.RecordConstructorArgs.__init__(
+            self, spec=spec, observe=observe, marking_obs=marking_obs, dt=dt, verdict=verdict,
+            truncate_at_horizon=truncate_at_horizon,
+        )
+        gym.Wrapper.__init__(self, env)
+        self.reward_system = rs = _reward_system(spec)
+        self.mitl_spec: Spec = rs.spec
+        self.state_names, self._needed = _state_names(self.mitl_spec)
+        self.runtime = NetRuntime(rs, self.state_names)
+        self.place_names: tuple[str, ...] = rs.net.place_names
+        n_places = len(self.place_names)
+
+        if marking_obs not in MARKING_OBS:
+            raise InputError(f"marking_obs must be one of {', '.join(MARKING_OBS)}, got {marking_obs!r}")
+        if verdict not in VERDICT:
+            raise InputError(f"verdict must be one of {', '.join(VERDICT)}, got {verdict!r}")
+        self.marking_obs = marking_obs
+
+        base = env.observation_space
+        if marking_obs == "dict":
+            self.observation_space = spaces.Dict({"obs": base, "marking": spaces.MultiBinary(n_places)})
+        else:
+            flat = spaces.flatten_space(base)
+            if not isinstance(flat, spaces.Box):
+                raise InputError(f"marking_obs='box' needs an observation space that flattens to a Box, got {base}")
+            dtype = np.result_type(flat.dtype, np.float32)
+            self.observation_space = spaces.Box(
+                low=np.concatenate([flat.low.astype(dtype), np.zeros(n_places, dtype)]),
+                high=np.concatenate([flat.high.astype(dtype), np.ones(n_places, dtype)]),
+                dtype=dtype,
+            )
+
+        if dt is None:
+            dt = getattr(env.unwrapped, "dt", None)
+            where = "the environment's dt"
+            if dt is None:
+                if self.mitl_spec.plant is None:
+                    raise InputError("no dt: the environment has no dt attribute and the spec names no plant; pass dt=")
+                dt, where = self.mitl_spec.param("dt"), "the plant's dt"
+        else:
+            where = "dt"
+        self.dt = _positive_dt(dt, where)
+        self.horizon = self.mitl_spec.horizon if truncate_at_horizon else None
+        if truncate_at_horizon and self.horizon is None:
+            raise InputError("truncate_at_horizon=True but the spec has no horizon")
+
+        self._read = self._reader(observe, base)
+        self._periodic = np.array(
+            [self.mitl_spec.plant is not None and self.mitl_spec.plant.var(n).periodic for n in self.state_names], dtype=bool
+        )
+        self._monitor = None
+        if verdict != "off":
+            try:
+                self._monitor = importlib.import_module("mitlc.monitor").monitor
+            except ImportError:  # the monitor is optional here: no verdict without it
+                self._monitor = None
+        self._verdict_mode = verdict
+
+        self._M = np.tile(np.asarray(rs.net.M0, dtype=np.int64), (1, 1))
+        self._k = 0
+        self._trace = np.zeros((64, len(self.state_names)))
+
+    # ------------------------------------------------------------ observation -> state
+    def _reader(self, observe: Observe, base: spaces.Space) -> Callable[[Any], np.ndarray]:
+        names = self.state_names
+        column = {n: i for i, n in enumerate(names)}
+        needed = self._needed
+        if callable(observe) and not isinstance(observe, Mapping):
+            fn = observe
+
+            def read(obs: Any) -> np.ndarray:
+                values = fn(obs)
+                if not isinstance(values, Mapping):
+                    raise InputError(f"observe() must return a mapping from state variable to value, got {type(values).__name__}")
+                missing = [n for n in needed if n not in values]
+                if missing:
+                    raise InputError(
+                        f"observe() gave no value for state variable '{missing[0]}' (the propositions read {', '.join(needed)})"
+                    )
+                x = np.full(len(names), np.nan)
+                for key, v in values.items():
+                    if key not in column:
+                        raise InputError(f"observe() gave '{key}', which is not a state variable of the spec ({', '.join(names)})")
+                    x[column[key]] = float(np.asarray(v, dtype=float))
+                return x
+
+        elif isinstance(observe, Mapping):
+            unknown = [k for k in observe if k not in column]
+            if unknown:
+                raise InputError(f"observe maps '{unknown[0]}', which is not a state variable of the spec ({', '.join(names)})")
+            missing = [n for n in needed if n not in observe]
+            if missing:
+                raise InputError(f"observe gives no value for state variable '{missing[0]}' (the propositions read {', '.join(needed)})")
+            try:
+                size: int | None = spaces.flatdim(base)
+            except (NotImplementedError, ValueError, TypeError):
+                size = None
+            getters: list[tuple[int, Callable[[Any, np.ndarray], float]]] = []
+            for key, how in observe.items():
+                if callable(how):
+                    getters.append((column[key], lambda obs, flat, f=how: float(np.asarray(f(obs), dtype=float))))
+                elif isinstance(how, (int, np.integer)) and not isinstance(how, bool):
+                    i = int(how)
+                    if size is not None and not -size <= i < size:
+                        raise InputError(f"observe maps '{key}' to index {i}, outside the flattened observation of size {size}")
+                    getters.append((column[key], lambda obs, flat, i=i: float(flat[i])))
+                else:
+                    raise InputError(f"observe maps '{key}' to {how!r}: expected an index or a function obs -> value")
+            needs_flat = any(isinstance(h, (int, np.integer)) for h in observe.values())
+
+            def read(obs: Any) -> np.ndarray:
+                flat = np.asarray(spaces.flatten(base, obs), dtype=float).reshape(-1) if needs_flat else None
+                x = np.full(len(names), np.nan)
+                for col, get in getters:
+                    x[col] = get(obs, flat)
+                return x
+
+        else:
+            raise InputError(f"observe must be a function or a mapping, got {type(observe).__name__}")
+
+        def checked(obs: Any) -> np.ndarray:
+            x = read(obs)
+            for n in needed:
+                v = x[column[n]]
+                if not np.isfinite(v):
+                    raise InputError(f"observe gave a non-finite value for '{n}': {v}")
+            return x
+
+        return checked
+
+    def state(self, obs: Any) -> np.ndarray:
+        """The spec's state ``(n,)`` (``state_names`` order) read off ``obs``; angles wrapped."""
+        x = self._read(obs)
+        x[self._periodic] = wrap_angle(x[self._periodic])
+        return x
+
+    # ------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        x0 = self.state(obs)
+        self._k = 0
+        self._trace[0] = x0
+        self._M = self.runtime.reset(x0[None, :])
+        info = dict(info)
+        info.update(self._info())
+        if self._verdict_mode == "step":
+            self._add_verdict(info)
+        return self._observation(obs), info
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        obs, env_reward, terminated, truncated, info = self.env.step(action)
+        x = self.state(obs)
+        self._k += 1
+        if self._k >= self._trace.shape[0]:
+            self._trace = np.concatenate([self._trace, np.zeros_like(self._trace)])
+        self._trace[self._k] = x
+        M_next = self.runtime.step(self._M, x[None, :], self._k * self.dt)
+        reward = float(self.runtime.reward(self._M, M_next)[0])
+        self._M = M_next
+        if self.horizon is not None and self._k * self.dt >= self.horizon - 1e-9 * max(1.0, self.horizon):
+            truncated = True
+        info = dict(info)
+        info["env_reward"] = env_reward
+        info.update(self._info())
+        if self._verdict_mode == "step" or (self._verdict_mode == "end" and (terminated or truncated)):
+            self._add_verdict(info)
+        return self._observation(obs), reward, bool(terminated), bool(truncated), info
+
+    # ------------------------------------------------------------ helpers
+    @property
+    def marking(self) -> np.ndarray:
+        """The current marking ``M_k`` ``(places,)``, int8, in ``place_names`` order."""
+        return self._M[0].astype(np.int8)
+
+    @property
+    def trace(self) -> np.ndarray:
+        """The states ``x_0 .. x_k`` of this episode so far, ``(k+1, n)`` (a copy)."""
+        return self._trace[: self._k + 1].copy()
+
+    def _info(self) -> dict[str, Any]:
+        return {"marking": self.marking, "tau": self._k * self.dt}
+
+    def _add_verdict(self, info: dict[str, Any]) -> None:
+        if self._monitor is None:
+            return
+        states = {n: self._trace[: self._k + 1, i] for i, n in enumerate(self.state_names) if n in self._needed}
+        res = self._monitor(self.mitl_spec, states, self.dt)
+        violation = float(res.violation_time[0])
+        info["verdict"] = {
+            "satisfied": bool(res.satisfied[0]),
+            "robustness": float(res.robustness[0]),
+            "violation_time": None if math.isnan(violation) else violation,
+            "failing": res.failing[0],
+        }
+
+    def _observation(self, obs: Any) -> Any:
+        marking = self.marking
+        if self.marking_obs == "dict":
+            return {"obs": obs, "marking": marking}
+        space = self.observation_space
+        flat = np.asarray(spaces.flatten(self.env.observation_space, obs), dtype=space.dtype).reshape(-1)
+        return np.concatenate([flat, marking.astype(space.dtype)])

@@ -1,0 +1,281 @@
+"""mitlc.gym: the Gymnasium wrapper against Gymnasium's checker and the built-in runtime."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium", reason="the gym extra is not installed: pip install '.[test]'")
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+from mitlc.compile import compile_spec  # noqa: E402
+from mitlc.errors import InputError  # noqa: E402
+from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
+from mitlc.parse import load_spec, parse_spec  # noqa: E402
+from mitlc.runtime import NetRuntime  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+SPECS = ROOT / "specs" / "pendulum"
+P1 = SPECS / "p1_swing_up.mitl"
+P5 = SPECS / "p5_timed_visit.mitl"
+PENDULUM_DT = 0.05  # Gymnasium's Pendulum-v1: env.unwrapped.dt
+HAS_MONITOR = importlib.util.find_spec("mitlc.monitor") is not None
+
+# Warnings check_env gives for Pendulum-v1 itself, whatever wraps it.
+KNOWN_WARNINGS = ("is different from the unwrapped version", "symmetric and normalized space")
+
+
+def wrapped(spec=P1, **kwargs) -> MitlRewardWrapper:
+    return MitlRewardWrapper(gym.make("Pendulum-v1"), spec, pendulum_v1_state, **kwargs)
+
+
+def random_rollout(env, seed: int, steps: int):
+    """A seeded random agent: the actions, observations, rewards and infos of one episode."""
+    env.action_space.seed(seed)
+    obs, info = env.reset(seed=seed)
+    actions, observations, rewards, infos, ends = [], [obs], [], [info], []
+    for _ in range(steps):
+        a = env.action_space.sample()
+        obs, r, terminated, truncated, info = env.step(a)
+        actions.append(a)
+        observations.append(obs)
+        rewards.append(r)
+        infos.append(info)
+        ends.append((terminated, truncated))
+    return actions, observations, rewards, infos, ends
+
+
+# ------------------------------------------------------------------ Gymnasium's checker
+
+
+@pytest.mark.parametrize("marking_obs", ["dict", "box"])
+@pytest.mark.parametrize("spec", [P1, P5], ids=["p1", "p5"])
+def test_check_env_passes(spec: Path, marking_obs: str, monkeypatch) -> None:
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    env = wrapped(spec, marking_obs=marking_obs)
+    # The render check draws Pendulum-v1 with pygame (gymnasium[classic-control]).
+    skip_render = importlib.util.find_spec("pygame") is None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env, skip_render_check=skip_render)
+    others = [str(w.message) for w in caught if not any(k in str(w.message) for k in KNOWN_WARNINGS)]
+    assert others == []
+
+
+def test_spaces() -> None:
+    d = wrapped(P5)
+    assert isinstance(d.observation_space, gym.spaces.Dict)
+    assert d.observation_space["marking"] == gym.spaces.MultiBinary(5)
+    assert d.observation_space["obs"] == d.env.observation_space
+    b = wrapped(P5, marking_obs="box")
+    assert b.observation_space.shape == (3 + 5,) and b.observation_space.dtype == np.float32
+    np.testing.assert_array_equal(b.observation_space.low, [-1, -1, -8, 0, 0, 0, 0, 0])
+    np.testing.assert_array_equal(b.observation_space.high, [1, 1, 8, 1, 1, 1, 1, 1])
+    assert d.dt == PENDULUM_DT and b.dt == PENDULUM_DT
+
+
+# ------------------------------------------------------------------ the reward is the runtime's
+
+
+def test_200_steps_of_pendulum_v1_equal_the_runtime() -> None:
+    seed, steps = 1, 200
+    env = wrapped(P1, verdict="off")
+    actions, observations, rewards, infos, ends = random_rollout(env, seed, steps)
+
+    # The same states, from the bare environment with the same seed and actions.
+    raw = gym.make("Pendulum-v1")
+    raw_obs = [raw.reset(seed=seed)[0]]
+    for a in actions:
+        raw_obs.append(raw.step(a)[0])
+    raw_obs = np.array(raw_obs)
+    np.testing.assert_array_equal(np.array([o["obs"] for o in observations]), raw_obs)
+
+    s = pendulum_v1_state(raw_obs)
+    x = np.stack([s["q"], s["qdot"]], axis=1)  # (N+1, 2) in the plant's order (q, qdot)
+    rt = NetRuntime(compile_spec(load_spec(P1)))
+    M = rt.reset(x[:1])
+    expected, markings = [], [M[0]]
+    for k in range(1, steps + 1):
+        M_next = rt.step(M, x[k : k + 1], k * PENDULUM_DT)
+        expected.append(float(rt.reward(M, M_next)[0]))
+        M = M_next
+        markings.append(M[0])
+    assert rewards == expected
+    np.testing.assert_array_equal(np.array([i["marking"] for i in infos]), np.array(markings))
+    np.testing.assert_array_equal(np.array([o["marking"] for o in observations]), np.array(markings))
+
+    # And by hand: (4-12) r = (1 + ~p_kappa)(p_kappa - p_not_kappa), kappa = |q| < 0.3.
+    kappa = np.abs(x[:, 0]) < 0.3
+    by_hand = (1.0 + kappa[:-1]) * np.where(kappa[1:], 1.0, -1.0)
+    np.testing.assert_array_equal(rewards, by_hand)
+    values, counts = np.unique(rewards, return_counts=True)
+    assert dict(zip(values.tolist(), counts.tolist())) == {-2.0: 4, -1.0: 178, 1.0: 3, 2.0: 15}
+    # Pendulum-v1's TimeLimit ends the episode at step 200, and the wrapper passes it on.
+    assert ends[-1] == (False, True) and all(e == (False, False) for e in ends[:-1])
+    assert [i["tau"] for i in infos[:3]] == [0.0, 0.05, 0.1]
+    assert all(isinstance(r, float) for r in rewards)
+    assert all(math.isfinite(i["env_reward"]) for i in infos[1:])
+
+
+def test_box_observation_is_obs_then_marking() -> None:
+    env = wrapped(P5, marking_obs="box", verdict="off")
+    _, observations, _, infos, _ = random_rollout(env, seed=4, steps=30)
+    for o, info in zip(observations, infos):
+        assert o.dtype == np.float32 and o.shape == (8,)
+        np.testing.assert_array_equal(o[3:], info["marking"])
+        assert o[3:].sum() == 2  # one token in the timeline, one in kappa's region net
+
+
+def test_reset_restores_the_initial_marking() -> None:
+    env = wrapped(P5, verdict="off")
+    net = env.reward_system.net
+    assert env.place_names == ("p_tau<=1", "p_1<tau<=2", "p_tau>2", "p_kappa", "p_not_kappa")
+    env.action_space.seed(0)
+    obs, info = env.reset(seed=0)
+    for _ in range(45):  # past tau = 2 s: the timeline token is in p_tau>2
+        obs, *_, info = env.step(env.action_space.sample())
+    assert info["marking"][:3].tolist() == [0, 0, 1]
+    obs, info = env.reset(seed=5)
+    np.testing.assert_array_equal(info["marking"][:3], net.M0[:3])  # timeline back at p_tau<=1
+    x0 = env.state(obs["obs"])
+    np.testing.assert_array_equal(info["marking"], NetRuntime(env.reward_system).reset(x0[None])[0])
+    kappa = abs(x0[0]) > math.pi - 0.5  # kappa is the bottom in problem 5
+    assert info["marking"][3:].tolist() == ([1, 0] if kappa else [0, 1])
+    assert info["tau"] == 0.0 and env.trace.shape == (1, 2)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_reset_is_deterministic(seed: int) -> None:
+    a = random_rollout(wrapped(P5, verdict="off"), seed, 20)
+    b = random_rollout(wrapped(P5, verdict="off"), seed, 20)
+    assert a[2] == b[2]
+    for ia, ib in zip(a[3], b[3]):
+        np.testing.assert_array_equal(ia["marking"], ib["marking"])
+
+
+def test_truncate_at_horizon() -> None:
+    env = wrapped(P1, verdict="off", truncate_at_horizon=True)
+    _, _, _, infos, ends = random_rollout(env, seed=0, steps=60)  # 3 s at 0.05 s
+    assert ends[-1] == (False, True) and not any(tr for _, tr in ends[:-1])
+    assert infos[-1]["tau"] == pytest.approx(3.0)
+
+
+# ------------------------------------------------------------------ info: marking and verdict
+
+
+@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor is not there yet")
+def test_info_has_the_monitors_verdict_so_far() -> None:
+    from mitlc.monitor import monitor
+
+    env = wrapped(P1)
+    _, observations, _, infos, _ = random_rollout(env, seed=1, steps=40)
+    spec = env.mitl_spec
+    states = np.array([env.state(o["obs"]) for o in observations])
+    for k in (0, 5, 40):
+        res = monitor(spec, states[: k + 1], PENDULUM_DT)
+        v = infos[k]["verdict"]
+        assert v["satisfied"] == bool(res.satisfied[0])
+        assert v["robustness"] == float(res.robustness[0])
+        assert v["failing"] == res.failing[0]
+    # F G kappa over x_0..x_k: the pendulum starts in kappa (q = 0.074) and falls out.
+    assert infos[0]["verdict"]["satisfied"] is True
+    assert infos[40]["verdict"]["satisfied"] is False
+
+
+def test_verdict_modes() -> None:
+    off = random_rollout(wrapped(P1, verdict="off"), 1, 3)[3]
+    assert all("verdict" not in i and "marking" in i for i in off)
+    if HAS_MONITOR:
+        end = random_rollout(wrapped(P1, verdict="end", truncate_at_horizon=True), 1, 60)[3]
+        assert [k for k, i in enumerate(end) if "verdict" in i] == [60]
+
+
+def test_without_the_monitor_there_is_no_verdict(monkeypatch) -> None:
+    monkeypatch.setitem(sys.modules, "mitlc.monitor", None)  # import mitlc.monitor raises ImportError
+    env = wrapped(P1)
+    _, info = env.reset(seed=1)
+    assert "verdict" not in info and info["marking"].tolist() == [1, 0]
+
+
+# ------------------------------------------------------------------ observe mappings
+
+
+def test_observe_mapping_of_indices_and_functions() -> None:
+    observe = {"q": lambda o: math.atan2(float(o[1]), float(o[0])), "qdot": 2}
+    a = random_rollout(MitlRewardWrapper(gym.make("Pendulum-v1"), P1, observe, verdict="off"), 2, 50)
+    b = random_rollout(wrapped(P1, verdict="off"), 2, 50)
+    assert a[2] == b[2]
+
+
+def test_spec_without_plant_uses_the_propositions_variables_and_given_dt() -> None:
+    spec = parse_spec("prop fast = abs(w) > 4\nformula G !fast")
+    env = MitlRewardWrapper(gym.make("Pendulum-v1"), spec, {"w": 2}, dt=0.1, verdict="off")
+    assert env.state_names == ("w",) and env.dt == 0.1
+    _, observations, rewards, infos, _ = random_rollout(env, 0, 20)
+    assert infos[3]["tau"] == pytest.approx(0.3)
+    fast = np.array([abs(o["obs"][2]) > 4 for o in observations])
+    # G !fast: r = (1 + ~h)(p_not_fast - p_fast) with h = ~p_not_fast
+    m = np.array([i["marking"] for i in infos])  # places: p_fast, p_not_fast
+    np.testing.assert_array_equal(m[:, 0], fast)
+    np.testing.assert_array_equal(rewards, (1 + m[:-1, 1]) * (m[1:, 1] - m[1:, 0]))
+    assert fast.any() and not fast.all()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"marking_obs": "flat"}, "marking_obs must be one of dict, box"),
+        ({"verdict": "always"}, "verdict must be one of step, end, off"),
+        ({"observe": {"theta": 0, "q": 1}}, "observe maps 'theta', which is not a state variable"),
+        ({"observe": {"qdot": 2}}, "no value for state variable 'q'"),
+        ({"observe": {"q": 7}}, "index 7, outside the flattened observation of size 3"),
+        ({"observe": {"q": "cos"}}, "expected an index or a function"),
+        ({"observe": 3}, "observe must be a function or a mapping"),
+        ({"dt": -0.05}, "dt must be positive and finite"),
+        ({"spec": 42}, "expected a RewardSystem, a Spec or the path"),
+    ],
+)
+def test_bad_arguments_are_one_line_input_errors(kwargs: dict, message: str) -> None:
+    args = {"spec": P1, "observe": pendulum_v1_state, **kwargs}
+    with pytest.raises(InputError, match=message.replace("(", r"\(")) as err:
+        MitlRewardWrapper(gym.make("Pendulum-v1"), args.pop("spec"), args.pop("observe"), **args)
+    assert "\n" not in str(err.value)
+
+
+def test_bad_observations_are_input_errors() -> None:
+    env = MitlRewardWrapper(gym.make("Pendulum-v1"), P1, lambda o: {"q": float("nan"), "qdot": 0.0})
+    with pytest.raises(InputError, match="non-finite value for 'q'"):
+        env.reset(seed=0)
+    env = MitlRewardWrapper(gym.make("Pendulum-v1"), P1, lambda o: {"qdot": 0.0})
+    with pytest.raises(InputError, match="no value for state variable 'q'"):
+        env.reset(seed=0)
+    env = MitlRewardWrapper(gym.make("Pendulum-v1"), P1, lambda o: {"x": 0.0, "q": 0.0})
+    with pytest.raises(InputError, match="'x', which is not a state variable of the spec \\(q, qdot\\)"):
+        env.reset(seed=0)
+    with pytest.raises(InputError, match="3 entries"):
+        pendulum_v1_state(np.zeros(2))
+
+
+def test_no_dt_anywhere_is_an_input_error() -> None:
+    class NoDt(gym.Env):
+        observation_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+        action_space = gym.spaces.Discrete(2)
+
+    spec = parse_spec("prop a = x > 0\nformula F a")
+    with pytest.raises(InputError, match="no dt"):
+        MitlRewardWrapper(NoDt(), spec, {"x": 0})
+    assert MitlRewardWrapper(NoDt(), P1, pendulum_v1_state).dt == 0.03  # the plant's dt
+
+
+def test_without_gymnasium_the_import_error_says_what_to_install() -> None:
+    code = "import sys; sys.modules['gymnasium'] = None\nimport mitlc.gym"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert r.returncode == 1
+    assert "ImportError: mitlc.gym needs Gymnasium, an optional dependency: pip install 'mitlc[gym]'" in r.stderr
