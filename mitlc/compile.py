@@ -723,6 +723,11 @@ def _resolve(e: R.RExpr, index: dict[str, int]) -> R.RExpr:
 
 def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSystem:
     """Compile a checked spec into its reward system."""
+    if spec.formula is None:
+        raise CompileError(
+            "the spec has no 'formula' to compile (its 'require' criteria compile to a hybrid automaton)",
+            file=spec.path,
+        )
     options = options or CompileOptions.from_spec(spec)
     if options.conjunction not in ("literal", "active"):
         raise CompileError(f"unknown conjunction reading '{options.conjunction}' (literal or active)")

@@ -29,7 +29,7 @@ from mitlc import ast as A
 from mitlc import predicates as P
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
 from mitlc.plants import PLANTS
-from mitlc.spec import OPTIONS, InitRange, PropDef, Spec
+from mitlc.spec import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
 
 __all__ = ["parse_spec", "load_spec", "parse_formula", "parse_predicate", "MAX_DEPTH", "RESERVED"]
 
@@ -38,7 +38,7 @@ MAX_DEPTH = 64
 
 RESERVED = frozenset(
     "F G U R W X true false True False inf infty not and or implies iff eventually always until "
-    "release weak_until prop formula check plant init horizon option in pi e".split()
+    "release weak_until prop formula check plant init horizon option in pi e setpoint require band".split()
 )
 
 
@@ -274,6 +274,24 @@ class _Build(Transformer):
     def horizon_def(self, children: list[Any]) -> tuple:
         return ("horizon", _arith(children[0]))
 
+    def setpoint_def(self, children: list[Any]) -> tuple:
+        return ("setpoint", _arith(children[0]))
+
+    def require_bound(self, children: list[Any]) -> tuple:
+        tok, cmp, value, band = children
+        if str(cmp) not in ("<=", "<"):
+            raise SpecError(
+                f"a requirement is an upper bound ('require {tok} <= value') or a range "
+                f"('require {tok} in [a, b]'), not '{cmp}'",
+                line=cmp.line,
+                column=cmp.column,
+            )
+        return ("require", tok, None, _arith(value), None if band is None else _arith(band))
+
+    def require_range(self, children: list[Any]) -> tuple:
+        tok, lo, hi, band = children
+        return ("require", tok, _arith(lo), _arith(hi), None if band is None else _arith(band))
+
     def option_def(self, children: list[Any]) -> tuple:
         tok, value = children
         return ("option", tok, value)
@@ -292,6 +310,7 @@ def _arith(x: Any) -> P.Pred:
 
 _FRIENDLY = {
     "NAME": "a name",
+    "PLANT_NAME": "a plant name",
     "NUMBER": "a number",
     "$END": "end of input",
     "LPAR": "'('",
@@ -328,8 +347,8 @@ def _friendly(names: set[str]) -> str:
     for n in names:
         if n in _FRIENDLY:
             out.add(_FRIENDLY[n])
-        elif n.isupper() and n.startswith(("PROP", "FORMULA", "CHECK", "PLANT", "INIT", "HORIZON", "OPTION", "IN")):
-            out.add(f"'{n.lower()}'")
+        elif n.startswith("_") and n[1:].isupper():
+            out.add(f"'{n[1:].lower()}'")
         else:
             out.add(n.lower())
     items = sorted(out)
@@ -462,6 +481,8 @@ def _parse_spec(text: str, path: str | None) -> Spec:
     init: dict[str, InitRange] = {}
     horizon: float | None = None
     options: dict[str, str] = {}
+    setpoint: float | None = None
+    requirements: dict[str, Requirement] = {}
     seen: dict[str, Token] = {}
 
     def once(key: str, tok: Token) -> None:
@@ -594,6 +615,40 @@ def _parse_spec(text: str, path: str | None) -> Spec:
             if horizon is not None:
                 raise SpecError("'horizon' given twice")
             horizon = h
+        elif kind == "setpoint":
+            tok = Token("SETPOINT", "setpoint", line=1, column=1)
+            if setpoint is not None:
+                raise SpecError("'setpoint' given twice")
+            setpoint = _const(st[1], "setpoint", tok)
+            if not math.isfinite(setpoint):
+                raise SpecError("setpoint must be finite")
+        elif kind == "require":
+            _, tok, lo_p, hi_p, band_p = st
+            name = str(tok)
+            if name not in CRITERIA:
+                raise SpecError(
+                    f"unknown criterion '{name}' (known: {', '.join(CRITERIA)})", line=tok.line, column=tok.column
+                )
+            if name in requirements:
+                raise SpecError(f"criterion '{name}' required twice", line=tok.line, column=tok.column)
+            hi = _const(hi_p, f"bound of {name}", tok)
+            lo = 0.0 if lo_p is None else _const(lo_p, f"bound of {name}", tok)
+            if not (math.isfinite(lo) and math.isfinite(hi)) or lo < 0 or lo > hi:
+                raise SpecError(
+                    f"bounds of {name} must be finite with 0 <= lower <= upper, got "
+                    f"[{A.fmt_number(lo)}, {A.fmt_number(hi)}]",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            band = None
+            if band_p is not None:
+                if name != "settling_time":
+                    raise SpecError(f"only settling_time takes a band, not {name}", line=tok.line, column=tok.column)
+                band = _const(band_p, "band", tok)
+                if not 0 < band < 1:
+                    raise SpecError(f"band must be a fraction in (0, 1), got {A.fmt_number(band)}",
+                                    line=tok.line, column=tok.column)
+            requirements[name] = Requirement(name, lo, hi, band, pos=_pos(tok))
         elif kind == "option":
             _, tok, value = st
             key = str(tok)
@@ -613,9 +668,9 @@ def _parse_spec(text: str, path: str | None) -> Spec:
             once(f"option {key}", tok)
             options[key] = val
 
-    if formula is None:
+    if formula is None and not requirements:
         lines = text.splitlines() or [""]
-        raise SpecError("the spec has no 'formula'", line=len(lines), column=1)
+        raise SpecError("the spec has no 'formula' (nor any 'require')", line=len(lines), column=1)
 
     for f in (formula, check):
         if f is None:
@@ -627,7 +682,8 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                 raise SpecError(
                     f"undefined proposition '{node.name}'", line=pos.line, column=pos.column, hint=hint
                 )
-    used = set(A.atoms(formula)) | (set(A.atoms(check)) if check is not None else set())
+    used = set(A.atoms(formula)) if formula is not None else set()
+    used |= set(A.atoms(check)) if check is not None else set()
     for name, p in props.items():
         if name not in used:
             pos = p.pos or A.Pos(1, 1)
@@ -642,6 +698,8 @@ def _parse_spec(text: str, path: str | None) -> Spec:
         init=tuple(init.values()),
         horizon=horizon,
         options=tuple(options.items()),
+        setpoint=0.0 if setpoint is None else setpoint,
+        requirements=tuple(requirements.values()),
         path=path,
         source=text,
         warnings=tuple(warnings),

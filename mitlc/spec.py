@@ -25,7 +25,15 @@ from mitlc.ast import Formula, Pos
 from mitlc.predicates import IntervalSet, Pred
 from mitlc.plants import PLANTS, Plant
 
-__all__ = ["PropDef", "InitRange", "Spec", "OPTIONS"]
+__all__ = ["PropDef", "InitRange", "Requirement", "Spec", "OPTIONS", "CRITERIA"]
+
+CRITERIA: dict[str, str] = {
+    "overshoot": "largest overshoot past the set-point, as a fraction of the step (M_p)",
+    "rise_time": "time to go from 10% to 90% of the step, in seconds (t_r)",
+    "settling_time": "time after which the state stays within the band around the set-point (t_s)",
+    "steady_state_error": "distance from the set-point at the end of the trial (e_ss)",
+}
+"""Classical step-response criteria a spec may ``require`` (thesis section 2-2-2)."""
 
 OPTIONS: dict[str, tuple[str, ...]] = {
     "conjunction": ("literal", "active"),
@@ -52,11 +60,25 @@ class InitRange:
     hi: float
 
 
+@dataclass(frozen=True, slots=True)
+class Requirement:
+    """``require name <= hi`` or ``require name in [lo, hi]`` (``band`` for the settling time)."""
+
+    name: str
+    lo: float
+    hi: float
+    band: float | None = None
+    pos: Pos | None = field(default=None, compare=False)
+
+
 @dataclass(frozen=True)
 class Spec:
-    """Everything a spec file says, checked."""
+    """Everything a spec file says, checked.
 
-    formula: Formula
+    ``formula`` is None only for a classical-performance spec (``require``).
+    """
+
+    formula: Formula | None
     props: tuple[PropDef, ...] = ()
     check: Formula | None = None
     plant_name: str | None = None
@@ -64,6 +86,8 @@ class Spec:
     init: tuple[InitRange, ...] = ()
     horizon: float | None = None
     options: tuple[tuple[str, str], ...] = ()
+    setpoint: float = 0.0
+    requirements: tuple[Requirement, ...] = ()
     path: str | None = None
     source: str | None = field(default=None, repr=False, compare=False)
     warnings: tuple[str, ...] = field(default=(), compare=False)
@@ -73,7 +97,7 @@ class Spec:
         return PLANTS.get(self.plant_name) if self.plant_name else None
 
     @property
-    def monitor_formula(self) -> Formula:
+    def monitor_formula(self) -> Formula | None:
         """The formula a trajectory is judged by: ``check`` if given, else ``formula``."""
         return self.check if self.check is not None else self.formula
 

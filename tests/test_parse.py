@@ -228,3 +228,34 @@ def test_fuzz_mutated_specs(mutations) -> None:
         parse_spec(text, "m.mitl")
     except MitlError as err:
         assert err.line is None or err.line >= 1
+
+
+# ----------------------------------------------------------------- classical criteria (chapter 3)
+def test_requirements() -> None:
+    s = parse_spec(
+        "plant mass-damper\ninit q in [-1, -0.5], qdot = 0\nhorizon 3\nsetpoint 0.5\n"
+        "require overshoot <= 0\nrequire rise_time in [0.6, 0.8]\n"
+        "require settling_time <= 2 band 0.05\nrequire steady_state_error < 0.02\n"
+    )
+    assert s.formula is None and s.setpoint == 0.5 and s.plant_name == "mass-damper"
+    assert [(r.name, r.lo, r.hi, r.band) for r in s.requirements] == [
+        ("overshoot", 0.0, 0.0, None),
+        ("rise_time", 0.6, 0.8, None),
+        ("settling_time", 0.0, 2.0, 0.05),
+        ("steady_state_error", 0.0, 0.02, None),
+    ]
+
+
+@pytest.mark.parametrize(
+    "line,message",
+    [
+        ("require overshot <= 0", "unknown criterion 'overshot'"),
+        ("require overshoot >= 0", "upper bound"),
+        ("require rise_time in [0.8, 0.6]", "0 <= lower <= upper"),
+        ("require overshoot <= 0 band 0.1", "only settling_time takes a band"),
+        ("require settling_time <= 2 band 5", "band must be a fraction"),
+    ],
+)
+def test_requirement_errors(line: str, message: str) -> None:
+    with pytest.raises(SpecError, match=message):
+        parse_spec(f"plant mass-damper\n{line}\n")
