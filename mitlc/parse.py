@@ -403,17 +403,9 @@ def _run(start: str, text: str, path: str | None) -> Any:
 # -------------------------------------------------------------- checks
 
 
-def _depth_formula(f: A.Formula) -> int:
-    best, stack = 0, [(f, 1)]
-    while stack:
-        node, d = stack.pop()
-        best = max(best, d)
-        stack.extend((c, d + 1) for c in node.children)
-    return best
-
-
-def _depth_pred(p: P.Pred) -> int:
-    best, stack = 0, [(p, 1)]
+def _depth(root: A.Formula | P.Pred) -> int:
+    """Nesting depth of a formula or predicate tree, without recursion."""
+    best, stack = 0, [(root, 1)]
     while stack:
         node, d = stack.pop()
         best = max(best, d)
@@ -422,7 +414,7 @@ def _depth_pred(p: P.Pred) -> int:
 
 
 def _check_depth(f: A.Formula) -> None:
-    if _depth_formula(f) > MAX_DEPTH:
+    if _depth(f) > MAX_DEPTH:
         pos = getattr(f, "pos", None)
         raise SpecError(
             f"formula nesting too deep (more than {MAX_DEPTH} levels)",
@@ -562,7 +554,7 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                     line=tok.line,
                     column=tok.column,
                 )
-            if _depth_pred(pred) > MAX_DEPTH:
+            if _depth(pred) > MAX_DEPTH:
                 raise SpecError(
                     f"predicate of '{name}' nested too deep (more than {MAX_DEPTH} levels)",
                     line=tok.line,
