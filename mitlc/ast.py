@@ -346,8 +346,17 @@ def atoms(f: Formula) -> tuple[str, ...]:
 
 
 def depth(f: Formula) -> int:
-    """Nesting depth (an atom has depth 1)."""
-    return 1 + max((depth(c) for c in f.children), default=0)
+    """Nesting depth (an atom has depth 1); works on any tree whose nodes have ``children``.
+
+    >>> depth(Not(Not(Atom("a"))))
+    3
+    """
+    best, stack = 0, [(f, 1)]
+    while stack:
+        node, d = stack.pop()
+        best = max(best, d)
+        stack.extend((c, d + 1) for c in node.children)
+    return best
 
 
 def size(f: Formula) -> int:

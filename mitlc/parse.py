@@ -403,14 +403,7 @@ def _run(start: str, text: str, path: str | None) -> Any:
 # -------------------------------------------------------------- checks
 
 
-def _depth(root: A.Formula | P.Pred) -> int:
-    """Nesting depth of a formula or predicate tree, without recursion."""
-    best, stack = 0, [(root, 1)]
-    while stack:
-        node, d = stack.pop()
-        best = max(best, d)
-        stack.extend((c, d + 1) for c in node.children)
-    return best
+_depth = A.depth  # iterative: safe on the deepest input
 
 
 def _check_depth(f: A.Formula) -> None:
