@@ -178,9 +178,19 @@ def to_pnml(rs: RewardSystem) -> str:
 def to_networkx(rs: RewardSystem) -> nx.DiGraph:
     """The net as a bipartite :class:`networkx.DiGraph`.
 
-    Place nodes have ``bipartite=0``, ``kind``, ``tokens`` (M0) and ``subnet``;
-    transition nodes ``bipartite=1``, ``guard`` and ``subnet``; every arc has
-    ``weight=1``.
+    Nodes are named after the places and transitions.  Place nodes have
+    ``bipartite=0``, ``kind`` ("state" or "timing"), ``tokens`` (M0),
+    ``subnet`` (index into ``net.subnets``) and ``label``; transition nodes
+    ``bipartite=1``, ``guard`` (text) and ``subnet``; every arc has
+    ``weight=1`` and joins a place and a transition (``D-``: place ->
+    transition, ``D+``: transition -> place).  The graph's ``formula`` is the
+    spec's formula.
+
+    >>> from mitlc.parse import parse_spec
+    >>> from mitlc.compile import compile_spec
+    >>> g = to_networkx(compile_spec(parse_spec("prop a = x < 1\\nformula G a")))
+    >>> g.nodes["p_a"], g.nodes["t1"], list(g.edges("t1", data=True))
+    ({'bipartite': 0, 'kind': 'state', 'tokens': 0, 'subnet': 0, 'label': 'a'}, {'bipartite': 1, 'guard': '!a', 'subnet': 0}, [('t1', 'p_not_a', {'weight': 1})])
     """
     net = rs.net
     g = nx.DiGraph(formula=str(rs.spec.formula))
