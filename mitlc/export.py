@@ -52,7 +52,8 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
         "spec": rs.spec.path,
         "formula": str(rs.spec.formula),
         "normal_form": str(rs.normal_form),
-        "options": {"conjunction": rs.options.conjunction},
+        "options": {"conjunction": rs.options.conjunction, "violations": rs.options.violations},
+        "penalty": rs.penalty,
         "places": [
             {"name": p.name, "kind": p.kind, "subnet": p.subnet, "label": p.label} for p in net.places
         ],

@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SPECS = sorted((ROOT / "specs" / "pendulum").glob("*.mitl"))
 SCHEMA = ROOT / "docs" / "net.schema.json"
 IDS = [p.stem for p in SPECS]
+VIOLATIONS = ("off", "permanent", "counted")
 
 # pm4py warns that a net read from PNML has no final marking; reward nets have none.
 pytestmark = pytest.mark.filterwarnings("ignore:the Petri net has been imported without a specified final marking")
@@ -57,12 +58,13 @@ def expected_net(rs):
 # ------------------------------------------------------------------ PNML through pm4py
 
 
+@pytest.mark.parametrize("violations", VIOLATIONS)
 @pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
-def test_pnml_read_back_by_pm4py(spec_path: Path, tmp_path: Path) -> None:
+def test_pnml_read_back_by_pm4py(spec_path: Path, violations: str, tmp_path: Path) -> None:
     pm4py = pytest.importorskip("pm4py", reason="pm4py (test-only PNML reader) is not installed: pip install '.[test]'")
     from pm4py.util.constants import PLACE_NAME_TAG
 
-    rs = compile_spec(load_spec(spec_path))
+    rs = compile_spec(load_spec(spec_path), CompileOptions(violations=violations))
     path = tmp_path / f"{spec_path.stem}.pnml"
     path.write_text(to_pnml(rs), encoding="utf-8")
     net, initial, final = pm4py.read_pnml(str(path))
@@ -80,9 +82,12 @@ def test_pnml_read_back_by_pm4py(spec_path: Path, tmp_path: Path) -> None:
     assert arcs == want_arcs
     assert m0 == want_m0
     assert not final  # PNML has no final marking; mitlc writes none
-    # one token per sub-net, two arcs per transition
+    # one token per sub-net; an arc from each input and to each output
     assert sum(m0.values()) == len(rs.net.subnets)
-    assert len(net.arcs) == 2 * len(rs.net.transitions)
+    assert len(net.arcs) == sum(len(t.inputs) + len(t.outputs) for t in rs.net.transitions)
+    if violations == "counted" and spec_path.stem != "p1_swing_up":  # all but p1 have a G part:
+        # its counter p_ok -> p_bad + p_count is a transition with two outputs
+        assert any(len(t.outputs) == 2 for t in rs.net.transitions)
 
 
 def test_pnml_of_problem_2_by_hand(tmp_path: Path) -> None:
@@ -108,9 +113,10 @@ def test_pnml_of_problem_2_by_hand(tmp_path: Path) -> None:
 # ------------------------------------------------------------------ networkx
 
 
+@pytest.mark.parametrize("violations", VIOLATIONS)
 @pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
-def test_networkx_is_bipartite_with_documented_attributes(spec_path: Path) -> None:
-    rs = compile_spec(load_spec(spec_path))
+def test_networkx_is_bipartite_with_documented_attributes(spec_path: Path, violations: str) -> None:
+    rs = compile_spec(load_spec(spec_path), CompileOptions(violations=violations))
     net = rs.net
     g = to_networkx(rs)
     assert isinstance(g, nx.DiGraph)
@@ -155,15 +161,19 @@ def cli_json(spec: Path, *extra: str) -> dict:
     return json.loads(r.output)
 
 
+@pytest.mark.parametrize("violations", VIOLATIONS)
+@pytest.mark.parametrize("conjunction", ["literal", "active"])
 @pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
-def test_cli_json_validates_against_the_schema(spec_path: Path, validator) -> None:
-    for extra in ((), ("--conjunction", "active")):
-        d = cli_json(spec_path, *extra)
-        errors = [f"{list(e.absolute_path)}: {e.message}" for e in validator.iter_errors(d)]
-        assert errors == []
-        rs = compile_spec(load_spec(spec_path), CompileOptions.from_spec(load_spec(spec_path), conjunction=extra[1] if extra else None))
-        assert d == json.loads(to_json(rs)) | {"spec": str(spec_path)}
-        check_consistent(d)
+def test_cli_json_validates_against_the_schema(spec_path: Path, conjunction: str, violations: str, validator) -> None:
+    d = cli_json(spec_path, "--conjunction", conjunction, "--violations", violations)
+    errors = [f"{list(e.absolute_path)}: {e.message}" for e in validator.iter_errors(d)]
+    assert errors == []
+    assert d["options"] == {"conjunction": conjunction, "violations": violations}
+    assert (d["penalty"] > 0) == (violations != "off")
+    spec = load_spec(spec_path)
+    rs = compile_spec(spec, CompileOptions(conjunction=conjunction, violations=violations))
+    assert d == json.loads(to_json(rs))
+    check_consistent(d)
 
 
 @pytest.mark.parametrize("name", sorted(EXTRA))
@@ -174,10 +184,12 @@ def test_every_subnet_role_and_reward_node_validates(name: str, validator) -> No
 
 
 def test_the_extra_specs_cover_every_role_and_op(validator) -> None:
-    roles, ops = set(), set()
-    for spec in [*SPECS, *EXTRA.values()]:
-        d = to_dict(compile_spec(load_spec(spec) if isinstance(spec, Path) else parse_spec(spec)))
+    roles, kinds, ops = set(), set(), set()
+    for spec, violations in [*((p, v) for p in SPECS for v in VIOLATIONS), *((e, "off") for e in EXTRA.values())]:
+        parsed = load_spec(spec) if isinstance(spec, Path) else parse_spec(spec)
+        d = to_dict(compile_spec(parsed, CompileOptions.from_spec(parsed, violations=violations)))
         roles |= {s["role"] for s in d["subnets"]}
+        kinds |= {p["kind"] for p in d["places"]}
         stack = [d["reward_tree"]]
         while stack:
             node = stack.pop()
@@ -186,6 +198,7 @@ def test_the_extra_specs_cover_every_role_and_op(validator) -> None:
             stack.extend(node[k] for k in ("gate", "expr", "arg") if k in node)
     schema = validator.schema
     assert roles == set(schema["properties"]["subnets"]["items"]["properties"]["role"]["enum"])
+    assert kinds == set(schema["properties"]["places"]["items"]["properties"]["kind"]["enum"])
     documented = set()
     for branch in schema["$defs"]["rexpr"]["oneOf"]:
         op = branch["properties"]["op"]
