@@ -10,7 +10,9 @@ reward             ``r(M_k, M_k+1)``, the compiled reward; the environment's own
                    is kept in ``info["env_reward"]``
 observation        ``{"obs": obs, "marking": M_k}`` (``Dict`` of the env's space and a
                    ``MultiBinary(places)``), or with ``marking_obs="box"`` one flat
-                   ``Box``: the flattened observation followed by the marking
+                   ``Box``: the flattened observation followed by the marking.  A net
+                   that counts (``violations = counted``) has an unbounded ``Box``
+                   entry per counter instead of ``MultiBinary``
 ``info``           ``marking`` (``M_k``, int8, in ``net.place_names`` order), ``tau``
                    (``k * dt``), ``env_reward``, and ``verdict``: the monitor's verdict
                    on ``x_0 .. x_k`` (when :mod:`mitlc.monitor` is available)
@@ -191,8 +193,15 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.marking_obs = marking_obs
 
         base = env.observation_space
+        self.token_bounds = _token_bounds(rs)
+        binary = bool(np.all(self.token_bounds == 1))
+        self._marking_dtype = np.int8 if binary else np.int64
         if marking_obs == "dict":
-            self.observation_space = spaces.Dict({"obs": base, "marking": spaces.MultiBinary(n_places)})
+            marking_space = (
+                spaces.MultiBinary(n_places) if binary
+                else spaces.Box(np.zeros(n_places, np.float32), self.token_bounds.astype(np.float32), dtype=np.float32)
+            )
+            self.observation_space = spaces.Dict({"obs": base, "marking": marking_space})
         else:
             flat = spaces.flatten_space(base)
             if not isinstance(flat, spaces.Box):
@@ -200,7 +209,7 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             dtype = np.result_type(flat.dtype, np.float32)
             self.observation_space = spaces.Box(
                 low=np.concatenate([flat.low.astype(dtype), np.zeros(n_places, dtype)]),
-                high=np.concatenate([flat.high.astype(dtype), np.ones(n_places, dtype)]),
+                high=np.concatenate([flat.high.astype(dtype), self.token_bounds.astype(dtype)]),
                 dtype=dtype,
             )
 
@@ -343,8 +352,12 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     # ------------------------------------------------------------ helpers
     @property
     def marking(self) -> np.ndarray:
-        """The current marking ``M_k`` ``(places,)``, int8, in ``place_names`` order."""
-        return self._M[0].astype(np.int8)
+        """The current marking ``M_k`` ``(places,)`` in ``place_names`` order.
+
+        int8 when every place holds at most one token; int64 when the net
+        counts (the counters of ``violations = counted``).
+        """
+        return self._M[0].astype(self._marking_dtype)
 
     @property
     def trace(self) -> np.ndarray:
@@ -370,7 +383,27 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def _observation(self, obs: Any) -> Any:
         marking = self.marking
         if self.marking_obs == "dict":
+            if self._marking_dtype != np.int8:
+                marking = marking.astype(np.float32)
             return {"obs": obs, "marking": marking}
         space = self.observation_space
         flat = np.asarray(spaces.flatten(self.env.observation_space, obs), dtype=space.dtype).reshape(-1)
         return np.concatenate([flat, marking.astype(space.dtype)])
+
+
+def _token_bounds(rs: RewardSystem) -> np.ndarray:
+    """Most tokens each place can hold: 1, or inf for a place that a transition
+    with more outputs than inputs feeds (the counters of ``violations = counted``).
+
+    >>> from mitlc.parse import parse_spec
+    >>> from mitlc.compile import CompileOptions
+    >>> spec = parse_spec("plant pendulum\\nhorizon 3\\nprop a = q < 1\\nformula G a")
+    >>> _token_bounds(compile_spec(spec, CompileOptions(violations="counted")))
+    array([ 1.,  1.,  1., inf, inf])
+    """
+    net = rs.net
+    bounds = np.ones(len(net.places))
+    for t in net.transitions:
+        if len(t.outputs) > len(t.inputs):
+            bounds[[net.place_index(p) for p in t.outputs]] = np.inf
+    return bounds

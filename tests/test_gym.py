@@ -15,7 +15,7 @@ import pytest
 gym = pytest.importorskip("gymnasium", reason="the gym extra is not installed: pip install '.[test]'")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-from mitlc.compile import compile_spec  # noqa: E402
+from mitlc.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.errors import InputError  # noqa: E402
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
 from mitlc.parse import load_spec, parse_spec  # noqa: E402
@@ -122,6 +122,44 @@ def test_200_steps_of_pendulum_v1_equal_the_runtime() -> None:
     assert [i["tau"] for i in infos[:3]] == [0.0, 0.05, 0.1]
     assert all(isinstance(r, float) for r in rewards)
     assert all(math.isfinite(i["env_reward"]) for i in infos[1:])
+
+
+@pytest.mark.parametrize("violations", ["off", "permanent"])
+@pytest.mark.parametrize("spec_path", sorted(SPECS.glob("*.mitl")), ids=lambda p: p.stem)
+def test_every_thesis_spec_rewards_as_the_runtime(spec_path: Path, violations: str) -> None:
+    spec = load_spec(spec_path)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=violations))
+    env = MitlRewardWrapper(gym.make("Pendulum-v1"), rs, pendulum_v1_state, verdict="off", truncate_at_horizon=True)
+    _, observations, rewards, infos, ends = random_rollout(env, seed=6, steps=60)
+    assert ends[-1] == (False, True)
+    x = np.array([env.state(o["obs"]) for o in observations])
+    rt = NetRuntime(rs)
+    M = rt.reset(x[:1])
+    for k in range(1, 61):
+        M_next = rt.step(M, x[k : k + 1], k * PENDULUM_DT)
+        assert rewards[k - 1] == float(rt.reward(M, M_next)[0])
+        np.testing.assert_array_equal(infos[k]["marking"], M_next[0])
+        M = M_next
+    if violations == "permanent":  # r' = r - C * (new tokens in violation places), r of the thesis's net
+        off = random_rollout(wrapped(spec_path, verdict="off", truncate_at_horizon=True), seed=6, steps=60)[2]
+        m = np.array([i["marking"] for i in infos])
+        watched = [i for i, p in enumerate(rs.net.places) if p.name.startswith(("p_violated_", "p_late_", "p_failed_"))]
+        new = (m[1:, watched] - m[:-1, watched]).sum(axis=1)
+        np.testing.assert_allclose(rewards, np.array(off) - rs.penalty * new)
+        assert new.sum() >= 1  # the random agent violates every spec at least once
+
+
+def test_counting_nets_observe_counts_in_a_box() -> None:
+    spec = load_spec(SPECS / "p2_avoid.mitl")
+    rs = compile_spec(spec, CompileOptions(violations="counted"))
+    d = MitlRewardWrapper(gym.make("Pendulum-v1"), rs, pendulum_v1_state)
+    counters = [i for i, n in enumerate(d.place_names) if n.startswith(("p_bad_", "p_count_"))]
+    assert [d.place_names[i] for i in counters] == ["p_bad_G_not_psi", "p_count_G_not_psi"]
+    marking = d.observation_space["marking"]
+    assert isinstance(marking, gym.spaces.Box) and marking.dtype == np.float32
+    assert np.isinf(marking.high[counters]).all() and (np.delete(marking.high, counters) == 1).all()
+    b = MitlRewardWrapper(gym.make("Pendulum-v1"), rs, pendulum_v1_state, marking_obs="box")
+    assert np.isinf(b.observation_space.high[3:][counters]).all()
 
 
 def test_box_observation_is_obs_then_marking() -> None:
