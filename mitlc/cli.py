@@ -105,3 +105,5 @@ def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None
 # Commands from other stages register here, one line each.
 # (keep this block: helpers add `main.add_command(...)` lines below)
 main.add_command(__import__("mitlc.check_cmd", fromlist=["check"]).check)
+main.add_command(__import__("mitlc.train_cmd", fromlist=["train"]).train)
+main.add_command(__import__("mitlc.train_cmd", fromlist=["simulate"]).simulate)
