@@ -152,14 +152,23 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
         raise InputError(
             f"time must increase: t = {t[k]:g} after t = {t[k - 1]:g}", file=path, line=trace.line(k)
         )
+    uneven = np.abs(steps - steps[0]) > UNIFORM_TOL * steps[0]
+    if uneven.any():
+        k = int(np.argmax(uneven)) + 1
+        raise InputError(
+            f"time step is not uniform: t goes from {t[k - 1]:g} to {t[k]:g} (a step of {steps[k - 1]:g} s), "
+            f"the first step is {steps[0]:g} s",
+            file=path,
+            line=trace.line(k),
+        )
     n = len(t) - 1
     dt = float((t[-1] - t[0]) / n)
     grid = t[0] + dt * np.arange(n + 1)
     off = np.abs(t - grid) > UNIFORM_TOL * dt
-    if off.any():
+    if off.any():  # small steps that drift away from the grid
         k = int(np.argmax(off))
         raise InputError(
-            f"time step is not uniform: t = {t[k]:g}, expected {grid[k]:g} for a step of {dt:g} s",
+            f"time step is not uniform: t = {t[k]:g} is off the grid t0 + k * {dt:g} s",
             file=path,
             line=trace.line(k),
         )
@@ -203,7 +212,8 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
         raise exc.located(trace) from None
     ok = bool(result.satisfied[0])
     rob = float(result.robustness[0])
-    when = float(tr.t[0] + result.violation_time[0]) if not ok else None
+    # the time column's own value at the violating sample
+    when = float(tr.t[int(round(result.violation_time[0] / dt))]) if not ok else None
     if as_json:
         click.echo(json.dumps({
             "spec": spec,
