@@ -1,0 +1,178 @@
+"""Every example in examples/ runs (except train_sb3.py, which needs PyTorch), and the
+documentation's examples are real: docs/python.md as doctests, docs/commands/compile.md
+by running each command again."""
+
+from __future__ import annotations
+
+import doctest
+import importlib.util
+import json
+import os
+import py_compile
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import mitlc
+from mitlc.export import to_dict
+from mitlc.render import to_digraph
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+HAS_GYM = importlib.util.find_spec("gymnasium") is not None
+HAS_DOT = shutil.which("dot") is not None
+TESTED = {"compile_and_render.py", "wrap_pendulum_v1.py", "train_sb3.py", "train_pendulum.py"}
+
+
+def run_example(name: str, *args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(EXAMPLES / name), *args],
+        cwd=cwd, capture_output=True, text=True, timeout=timeout,
+        env={**os.environ, "SDL_VIDEODRIVER": "dummy"},
+    )
+
+
+def test_every_example_is_tested() -> None:
+    present = {p.name for p in EXAMPLES.glob("*.py")}
+    assert present - TESTED == set(), "add a test for the new example"
+    assert TESTED - {"train_pendulum.py"} <= present
+
+
+# ------------------------------------------------------------------ compile_and_render.py
+
+
+def test_compile_and_render(tmp_path: Path) -> None:
+    r = run_example("compile_and_render.py", "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0] == "formula:  F G kappa & 10 * G !psi"
+    assert lines[2] == "places:   p_kappa, p_psi, p_none_kappa_psi"
+    assert lines[3] == "M0:       [0, 0, 1]"
+    assert "  t1: p_kappa -> p_psi when psi" in lines
+    assert lines[-2] == (
+        "reward:   min((1 + ~p_kappa) * (p_kappa - (p_psi + p_none_kappa_psi)), "
+        "10 * (1 + (~p_kappa + ~p_none_kappa_psi)) * ((p_kappa + p_none_kappa_psi) - p_psi))"
+    )
+    out = tmp_path / "out"
+    rs = mitlc.compile_spec(mitlc.load_spec(ROOT / "specs" / "pendulum" / "p2_avoid.mitl"))
+    assert (out / "p2_avoid.dot").read_text() == to_digraph(rs).source
+    assert json.loads((out / "p2_avoid.json").read_text())["D"] == to_dict(rs)["D"]
+    if HAS_DOT:
+        assert (out / "p2_avoid.svg").read_text().lstrip().startswith(("<?xml", "<svg"))
+        assert lines[-1] == f"wrote p2_avoid.dot, p2_avoid.json, p2_avoid.svg to {out}"
+
+
+def test_compile_and_render_bad_spec(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.mitl"
+    bad.write_text("prop a = x < 1\nformula F G b\n")
+    r = run_example("compile_and_render.py", str(bad), "--out", str(tmp_path), cwd=tmp_path)
+    assert r.returncode == 2
+    assert r.stderr.splitlines()[0] == f"{bad}:2:13: error: undefined proposition 'b'"
+    assert "Traceback" not in r.stderr
+
+
+# ------------------------------------------------------------------ wrap_pendulum_v1.py
+
+
+@pytest.mark.skipif(not HAS_GYM, reason="needs the gym extra")
+def test_wrap_pendulum_v1(tmp_path: Path) -> None:
+    r = run_example("wrap_pendulum_v1.py", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0] == "spec p1_swing_up.mitl: F G kappa"
+    assert lines[1] == "places p_kappa, p_not_kappa; dt = 0.05 s; horizon 3.0 s"
+    steps = [line for line in lines if line.startswith("tau ")]
+    assert len(steps) == 61  # x_0 .. x_60: 3 s of 0.05 s
+    assert steps[0] == "tau  0.00  q +0.074  M p_kappa"
+    rewards = [float(line.split(" r ")[1].split()[0]) for line in steps[1:]]
+    assert rewards[:6] == [2.0, 2.0, 2.0, -2.0, -1.0, -1.0]
+    assert lines[-2].startswith(f"return {sum(rewards):+.2f} (Pendulum-v1's own reward would give ")
+    if importlib.util.find_spec("mitlc.monitor") is not None:
+        assert lines[-1].startswith("monitor: violated at 3.0 s by F G kappa, robustness ")
+
+
+@pytest.mark.skipif(not HAS_GYM, reason="needs the gym extra")
+def test_wrap_pendulum_v1_box_and_timed_spec(tmp_path: Path) -> None:
+    r = run_example(
+        "wrap_pendulum_v1.py", str(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"),
+        "--seed", "4", "--marking-obs", "box", cwd=tmp_path,
+    )
+    assert r.returncode == 0, r.stderr
+    steps = [line for line in r.stdout.splitlines() if line.startswith("tau ")]
+    timeline = [line.split(" M ")[1].split(",")[0] for line in steps]
+    # the timeline token moves at tau > 1 and tau > 2 (net C-5)
+    assert timeline[20] == "p_tau<=1" and timeline[21] == "p_1<tau<=2"
+    assert timeline[40] == "p_1<tau<=2" and timeline[41] == "p_tau>2"
+
+
+# ------------------------------------------------------------------ train_sb3.py (not run)
+
+
+def test_train_sb3_compiles_and_explains_what_is_missing(tmp_path: Path) -> None:
+    py_compile.compile(str(EXAMPLES / "train_sb3.py"), cfile=str(tmp_path / "train_sb3.pyc"), doraise=True)
+    if importlib.util.find_spec("stable_baselines3") is not None:
+        pytest.skip("Stable-Baselines3 is installed: the example would train (not run in CI)")
+    r = run_example("train_sb3.py", "--timesteps", "10", cwd=tmp_path)
+    assert r.returncode == 1
+    assert r.stderr.strip() == (
+        "train_sb3.py needs Stable-Baselines3 (and PyTorch), which mitlc does not install: "
+        "pip install stable-baselines3 'mitlc[gym]'"
+    )
+
+
+# ------------------------------------------------------------------ the docs' examples
+
+
+@pytest.mark.skipif(not HAS_GYM, reason="docs/python.md shows the gym wrapper")
+def test_python_md_examples_run(monkeypatch) -> None:
+    monkeypatch.chdir(ROOT)
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    result = doctest.testfile(
+        str(ROOT / "docs" / "python.md"), module_relative=False,
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE, verbose=False,
+    )
+    assert result.failed == 0 and result.attempted >= 40
+
+
+def console_blocks(markdown: str) -> list[list[tuple[str, str]]]:
+    """The ``console`` blocks of a page: per block, (command, expected output) pairs."""
+    blocks, current, in_block = [], None, False
+    for line in markdown.splitlines():
+        if line.startswith("```console"):
+            current, in_block = [], True
+        elif line.startswith("```") and in_block:
+            blocks.append(current)
+            in_block = False
+        elif in_block and line.startswith("$ "):
+            current.append((line[2:], ""))
+        elif in_block:
+            cmd, out = current[-1]
+            current[-1] = (cmd, out + line + "\n")
+    return blocks
+
+
+def test_compile_md_shows_real_output(tmp_path: Path) -> None:
+    """Each command of docs/commands/compile.md, run again in a scratch directory, prints
+    what the page shows.  If this fails after a deliberate change, run the command from
+    the repository root and paste its output into the page."""
+    (tmp_path / "specs").symlink_to(ROOT / "specs")
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+    blocks = console_blocks((ROOT / "docs" / "commands" / "compile.md").read_text(encoding="utf-8"))
+    commands = [pair for block in blocks for pair in block]
+    assert len(commands) >= 10
+    formats = set()
+    for cmd, expected in commands:
+        if not HAS_DOT and ("--format svg" in cmd or "--format png -o" in cmd):
+            continue
+        r = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True, timeout=60)
+        got = r.stdout if r.stdout.endswith("\n") or not r.stdout else r.stdout + "\n"
+        assert got == expected, f"docs/commands/compile.md is out of date for: {cmd}"
+        formats |= {part.split()[0] for part in cmd.split("--format ")[1:]}
+    assert formats >= ({"svg", "png"} if HAS_DOT else set()) | {"json", "dot", "pnml"}
+    if HAS_DOT:
+        assert (tmp_path / "p1_swing_up.svg").read_text().lstrip().startswith(("<?xml", "<svg"))
+        assert (tmp_path / "p2_avoid.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
