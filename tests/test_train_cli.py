@@ -1,0 +1,131 @@
+"""``mitlc train`` and ``mitlc simulate`` through click's CliRunner."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mitlc.cli import main
+
+SPEC = """
+plant pendulum(u_max = 10)
+init q in [2.4, pi], qdot = 0
+horizon 1
+prop kappa = abs(q) < 0.3
+prop psi   = 0.3 < q < pi/2 + 0.5
+formula F G kappa & 10 * G !psi
+"""
+
+
+@pytest.fixture
+def spec_file(tmp_path):
+    p = tmp_path / "p2.mitl"
+    p.write_text(SPEC)
+    return p
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+def test_train_writes_everything(spec_file, tmp_path):
+    out = tmp_path / "out"
+    res = run("train", "--plant", "pendulum", "--spec", spec_file, "--runs", 3, "--trials", 4, "--out", out, "-q")
+    assert res.exit_code == 0, res.output
+    assert "success rate" in res.output
+    for name in ("metrics.json", "params.npz", "learning_curve.png", "rollout.png"):
+        assert (out / name).stat().st_size > 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert np.array(m["returns"]).shape == (3, 4)
+    assert 0.0 <= m["success_rate"] <= 1.0 and len(m["satisfied"]) == 3
+    assert m["wall_s"] > 0 and m["settings"]["gamma"] == 0.97
+    assert not list(out.glob(".*"))  # no temporary files left
+
+
+def test_same_seed_same_returns_and_resume(spec_file, tmp_path):
+    a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
+    common = ("--spec", spec_file, "--runs", 2, "--seed", 3, "-q", "--no-plots")
+    assert run("train", *common, "--trials", 6, "--out", a).exit_code == 0
+    assert run("train", *common, "--trials", 6, "--out", b).exit_code == 0
+    ra = json.loads((a / "metrics.json").read_text())["returns"]
+    assert ra == json.loads((b / "metrics.json").read_text())["returns"]
+    assert run("train", *common, "--trials", 2, "--out", c).exit_code == 0
+    res = run("train", "--resume", c, "--trials", 6, "-q", "--no-plots")
+    assert res.exit_code == 0, res.output
+    with np.load(a / "params.npz") as pa, np.load(c / "params.npz") as pc:
+        np.testing.assert_array_equal(pa["xi"], pc["xi"])
+        np.testing.assert_array_equal(pa["theta"], pc["theta"])
+    assert json.loads((c / "metrics.json").read_text())["returns"] == ra
+
+
+def test_ctrl_c_writes_a_checkpoint_that_resumes(spec_file, tmp_path, monkeypatch):
+    from mitlc import sacpn
+
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    common = ("--spec", spec_file, "--runs", 2, "-q", "--no-plots")
+    assert run("train", *common, "--trials", 5, "--out", whole).exit_code == 0
+    real = sacpn.Sacpn._trial
+    calls = {"n": 0}
+
+    def interrupted(self):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(self)
+
+    monkeypatch.setattr(sacpn.Sacpn, "_trial", interrupted)
+    res = run("train", *common, "--trials", 5, "--out", cut)
+    assert res.exit_code == 130
+    assert "--resume" in res.output
+    m = json.loads((cut / "metrics.json").read_text())
+    assert m["interrupted"] and m["trials"] == 2
+    monkeypatch.setattr(sacpn.Sacpn, "_trial", real)
+    assert run("train", "--resume", cut, "--trials", 5, "-q", "--no-plots").exit_code == 0
+    with np.load(whole / "params.npz") as pw, np.load(cut / "params.npz") as pc:
+        np.testing.assert_array_equal(pw["xi"], pc["xi"])
+
+
+def test_simulate_prints_a_verdict_per_rollout(spec_file, tmp_path):
+    out = tmp_path / "pol"
+    assert run("train", "--spec", spec_file, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots").exit_code == 0
+    res = run("simulate", "--policy", out, "--rollouts", 3)
+    assert res.exit_code == 0, res.output
+    assert res.output.count("rollout ") == 3
+    assert "rollouts satisfy" in res.output
+    assert (out / "simulate.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("train",), "give --plant or --spec"),
+        (("train", "--plant", "mass-damper", "--spec", "SPEC"), "not 'mass-damper'"),
+        (("train", "--plant", "nosuch"), "unknown plant"),
+        (("simulate", "--policy", "EMPTY"), "no params.npz"),
+    ],
+)
+def test_user_errors_are_one_line_and_exit_2(spec_file, tmp_path, args, message):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    args = tuple(str(spec_file) if a == "SPEC" else str(empty) if a == "EMPTY" else a for a in args)
+    res = CliRunner().invoke(main, list(args))
+    assert res.exit_code == 2, res.output
+    assert message in res.output
+    assert "Traceback" not in res.output
+
+
+def test_diverging_training_is_a_clean_error(spec_file, tmp_path, monkeypatch):
+    from mitlc import sacpn
+
+    def nan_trial(self):
+        self.xi[0, 0, 0] = np.inf
+        return np.zeros(self.runs)
+
+    monkeypatch.setattr(sacpn.Sacpn, "_trial", nan_trial)
+    res = CliRunner().invoke(main, ["train", "--spec", str(spec_file), "--runs", "2", "--trials", "3",
+                                    "--out", str(tmp_path / "o"), "-q"])
+    assert res.exit_code == 2
+    assert "diverged" in res.output
