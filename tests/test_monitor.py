@@ -645,6 +645,21 @@ def test_long_traces_against_reference(f: A.Formula, seed: int) -> None:
     assert signals(ABC, sig, 0.25, f)[str(f)][0].tolist() == [ref(f, k)[1] for k in range(n)]
 
 
+@pytest.mark.parametrize("text", ["a U b", "a U[1,3] b", "a R(0.5,2] b", "!a W[0,4) b", "G (a -> F[0,1] b)", "b U(2,inf) G !a"])
+def test_long_batch_against_reference(text: str) -> None:
+    """Several runs longer than the until kernel's block size, each against the reference."""
+    f = parse_formula(text)
+    rng = np.random.default_rng(7)
+    R, n, dt = 3, 150, 0.25
+    sig = {k: rng.choice([-2.0, -1.0, 0.0, 1.0, 2.0], size=(R, n), p=[0.1, 0.2, 0.1, 0.3, 0.3]) for k in ("x", "y", "z")}
+    res = monitor(ABC, sig, dt, f)
+    rob = signals(ABC, sig, dt, f)[text]
+    for r in range(R):
+        ref = reference(f, {"a": list(sig["x"][r]), "b": list(sig["y"][r])}, dt, n)
+        assert (bool(res.satisfied[r]), float(res.robustness[r])) == ref(f, 0)
+        assert rob[r].tolist() == [ref(f, k)[1] for k in range(n)]
+
+
 @settings(max_examples=60, deadline=None)
 @given(f=state_formulas(atoms=("a", "b")), sig=traces())
 def test_state_formula_is_pointwise(f: A.Formula, sig) -> None:
