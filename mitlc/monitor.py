@@ -456,9 +456,11 @@ def _(f: A.WeakUntil, ev: _Eval, lat: _Lattice) -> np.ndarray:
 
 # ----------------------------------------------------------------- explanations
 #
-# The settle signal of a node: S[r, k] is the sample from which the node's value
+# The settle signal of a node: S[r, k] is a sample from which the node's value
 # at sample k (true or false) can no longer change, whatever the later samples
-# of the same trace are. It is built compositionally, like the robustness, with
+# of the same trace are. It is built compositionally, like the robustness (so
+# for parts that depend on each other, as in `F a & G !a`, it may be later than
+# the earliest such sample), with
 # values and windows of sample indices: a G is refuted by its earliest settled
 # counter-example, an F by the last settled sample of its window, an & by its
 # earliest refuted side, an | only when both sides are refuted, an until by
