@@ -566,18 +566,31 @@ class Sacpn:
         scale = 1.0
 
         code = rt.reset_code(x)
-        flat = marked[code] + offset
+        # marked rows as flat indices into (R * P, F); with one token per run a 1-D index
+        one = K == 1
+        mk = marked[:, 0] if one else marked
+        off = offset[:, 0] if one else offset
+        flat = mk[code] + off
         phi = features(x)
         phi_next = np.empty_like(phi)
-        kbuf = np.empty((R, K, 1))
         ret = np.zeros(R)
-        kbuf0 = kbuf[:, 0, 0]
         u, a, du, coef, v0, v1, u_sat, delta, sv, over = (np.empty(R) for _ in range(10))
         keep = np.zeros(R, dtype=bool)
         bootstrap = st.bootstrap_timeout
+        vecdot = np.vecdot
+        sv_b = sv[:, None] if (one or not current) else sv[:, None, None]
+        coef_b = coef[:, None] if one else coef[:, None, None]
 
-        matmul(xi_f[flat], phi[:, :, None], out=kbuf)
-        np.add.reduce(kbuf[:, :, 0], axis=1, out=u)
+        def dot(rows: np.ndarray, ph: np.ndarray, out: np.ndarray) -> None:
+            if one:
+                vecdot(rows, ph, out=out)
+            else:
+                np.add.reduce(vecdot(rows, ph[:, None, :]), axis=1, out=out)
+
+        def rows_of(ph: np.ndarray) -> np.ndarray:  # phi shaped like the gathered rows
+            return ph if one else ph[:, None, :]
+
+        dot(xi_f[flat], phi, u)
         u *= inv_k
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             for k in range(N):
@@ -598,23 +611,15 @@ class Sacpn:
                 r = reward_tab[code, code1]
                 ret += r
                 features(x, out=phi_next)
-                flat1 = marked[code1]
-                flat1 += offset
+                flat1 = mk[code1]
+                flat1 += off
                 # TD error with Theta_k
-                matmul(th_f[flat], phi[:, :, None], out=kbuf)
-                if K == 1:
-                    multiply(kbuf0, -inv_k, out=delta)
-                else:
-                    np.add.reduce(kbuf[:, :, 0], axis=1, out=v0)
-                    multiply(v0, -inv_k, out=delta)
+                dot(th_f[flat], phi, v0)
+                multiply(v0, -inv_k, out=delta)
                 delta += r
                 if bootstrap or k < N - 1:
-                    matmul(th_f[flat1], phi_next[:, :, None], out=kbuf)
-                    if K == 1:
-                        multiply(kbuf0, gamma * inv_k, out=v1)
-                    else:
-                        np.add.reduce(kbuf[:, :, 0], axis=1, out=v1)
-                        v1 *= gamma * inv_k
+                    dot(th_f[flat1], phi_next, v1)
+                    v1 *= gamma * inv_k
                     delta += v1
                 # actor: xi += alpha_a delta du grad pi, grad pi = m phi(x_k)
                 multiply(delta, du, out=coef)
@@ -628,29 +633,26 @@ class Sacpn:
                 if scale < 1e-100:
                     e_hat *= scale
                     scale = 1.0
+                ph = rows_of(phi)
                 if current:
                     coef *= a_a * inv_k
-                    xi_f[flat] += coef[:, None, None] * phi[:, None, :]
-                    e_hat_f[flat] += (inv_k / scale) * phi[:, None, :]
+                    xi_f[flat] += coef_b * ph
+                    e_hat_f[flat] += (inv_k / scale) * ph
                     multiply(delta, a_c * scale, out=sv)
                     multiply(e_hat, sv[:, None, None], out=tmp)
                     theta += tmp
                 else:
                     coef *= a_a
-                    xi_f[flat1] += coef[:, None, None] * phi[:, None, :]
+                    xi_f[flat1] += coef_b * ph
                     e_hat += phi * (1.0 / scale)
                     multiply(delta, a_c * scale, out=sv)
-                    multiply(e_hat, sv[:, None], out=tmp)
-                    th_f[flat1] += tmp[:, None, :]
+                    multiply(e_hat, sv_b, out=tmp)
+                    th_f[flat1] += tmp if one else tmp[:, None, :]
                 # next policy output with Xi_k+1
                 code, flat = code1, flat1
                 phi, phi_next = phi_next, phi
-                matmul(xi_f[flat], phi[:, :, None], out=kbuf)
-                if K == 1:
-                    multiply(kbuf0, inv_k, out=u)
-                else:
-                    np.add.reduce(kbuf[:, :, 0], axis=1, out=u)
-                    u *= inv_k
+                dot(xi_f[flat], phi, u)
+                u *= inv_k
         return ret
 
     # ------------------------------------------------------------ evaluation

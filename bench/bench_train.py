@@ -1,0 +1,144 @@
+"""Throughput of the SACPN training loop, in run-steps per second.
+
+One run-step is one environment step of one run (plant step, net step, reward,
+actor and critic update).  Measures, in one process and on one core
+(BLAS threads pinned to 1):
+
+* the batched trainer (:meth:`mitlc.sacpn.Sacpn.train`) at R = 1 and R = 30;
+* a naive baseline: the same algorithm written plainly, a Python loop over runs
+  and steps using the library's reference pieces (``Plant.step``,
+  ``NetRuntime.step`` and ``.reward`` on markings, the RBF formula per state);
+
+and prints the ratios.  The baseline also checks the fast path: on the same
+random numbers its returns match the trainer's.
+
+    python bench/bench_train.py [--problem p1] [--trials 40]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from mitlc.compile import compile_spec  # noqa: E402
+from mitlc.parse import load_spec  # noqa: E402
+from mitlc.sacpn import Sacpn, SacpnSettings  # noqa: E402
+
+SPECS = {
+    "p1": "p1_swing_up.mitl",
+    "p2": "p2_avoid.mitl",
+    "p3": "p3_avoid_speed_limit.mitl",
+    "p4": "p4_alternate.mitl",
+    "p5": "p5_timed_visit.mitl",
+}
+
+
+def batched(rs, runs: int, trials: int, seed: int = 0, repeats: int = 3) -> tuple[float, np.ndarray]:
+    """Best of ``repeats`` timings (the machine is shared: the best is the least disturbed)."""
+    agent = Sacpn(rs, SacpnSettings(), runs=runs, seed=seed)
+    agent.train(2)  # warm up buffers and caches
+    best = math.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        agent.train(trials)
+        best = min(best, time.perf_counter() - start)
+    return runs * trials * agent.n_steps / best, agent.returns
+
+
+def naive(rs, runs: int, trials: int, seed: int = 0) -> tuple[float, np.ndarray]:
+    """The same learner, plainly: one run at a time, one step at a time."""
+    ref = Sacpn(rs, SacpnSettings(), runs=runs, seed=seed)  # for its settings, generators and constants
+    st, plant, rt = ref.settings, ref.plant, ref.runtime
+    P, N = rt.n_places, ref.n_steps
+    u_max, sigma = ref.u_max, ref.sigma
+    # RBF centres and widths, as documented in RbfFeatures
+    cq = -math.pi + 2 * math.pi * np.arange(10) / 10
+    wq = 2 * math.pi / 10
+    lo, hi = -20.0, 20.0
+    cv = np.linspace(lo, hi, 10)
+    wv = (hi - lo) / 9
+
+    def features(q: float, v: float) -> np.ndarray:
+        g = np.exp((np.cos(q - cq) - 1) / wq**2)
+        h = np.exp(-((min(max(v, lo), hi) - cv) ** 2) / (2 * wv**2))
+        phi = np.outer(g, h).ravel()
+        return phi / phi.sum()
+
+    returns = np.zeros((runs, trials))
+    start = time.perf_counter()
+    for r in range(runs):
+        rng = ref.rngs[r]
+        xi = np.zeros((P, 100))
+        theta = np.zeros((P, 100))
+        for trial in range(trials):
+            x0 = np.array([[rng.uniform(a, b) for a, b in ref.init_ranges]])
+            x0[0, 0] = (x0[0, 0] + math.pi) % (2 * math.pi) - math.pi
+            noise = rng.standard_normal(N) * sigma
+            x = x0
+            M = rt.reset(x)
+            e = np.zeros((P, 100))
+            for k in range(N):
+                m = M[0] / M[0].sum()
+                phi = features(x[0, 0], x[0, 1])
+                u_raw = m @ xi @ phi
+                u_sat = min(max(u_raw, -u_max), u_max)
+                a = min(max(u_sat + noise[k], -u_max), u_max)
+                du = a - u_sat
+                x_next = plant.step(x.copy(), np.array([a]), ref.params)
+                M_next = rt.step(M, x_next, (k + 1) * ref.dt)
+                reward = float(rt.reward(M, M_next)[0])
+                returns[r, trial] += reward
+                m_next = M_next[0] / M_next[0].sum()
+                phi_next = features(x_next[0, 0], x_next[0, 1])
+                delta = reward + st.gamma * (m_next @ theta @ phi_next) - m @ theta @ phi
+                step = st.alpha_a * delta * du
+                if (u_raw - u_sat) * step > 0:  # anti-wind-up: not further past the bound
+                    step = 0.0
+                xi += step * np.outer(m, phi)
+                e = st.gamma * st.lam * e + np.outer(m, phi)
+                theta += st.alpha_c * delta * e
+                x, M = x_next, M_next
+    wall = time.perf_counter() - start
+    return runs * trials * N / wall, returns
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--problem", default="p1", choices=sorted(SPECS))
+    ap.add_argument("--trials", type=int, default=40, help="trials timed for the batched trainer")
+    ap.add_argument("--naive-trials", type=int, default=4, help="trials timed for the naive loop (3 runs)")
+    args = ap.parse_args()
+    rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / SPECS[args.problem]))
+    print(f"problem {args.problem}: {len(rs.net.places)} places, {len(rs.net.subnets)} sub-nets, "
+          f"numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
+    rate1, _ = batched(rs, 1, args.trials)
+    rate30, _ = batched(rs, 30, args.trials)
+    rate_naive, naive_returns = naive(rs, 3, args.naive_trials)
+    # same seed, same random numbers: the fast path must give the naive loop's returns
+    check = Sacpn(rs, SacpnSettings(), runs=3, seed=0)
+    fast_returns = check.train(args.naive_trials)
+    agree = np.abs(fast_returns - naive_returns).max()
+    print(f"batched R=1 : {rate1:12,.0f} run-steps/s")
+    print(f"batched R=30: {rate30:12,.0f} run-steps/s")
+    print(f"naive loop  : {rate_naive:12,.0f} run-steps/s")
+    print(f"ratio R=30 / naive: {rate30 / rate_naive:6.1f}x   R=1 / naive: {rate1 / rate_naive:5.1f}x   "
+          f"R=30 / R=1: {rate30 / rate1:5.1f}x")
+    print(f"max |return difference| fast vs naive over {args.naive_trials} trials x 3 runs: {agree:.3g}")
+
+
+if __name__ == "__main__":
+    main()
