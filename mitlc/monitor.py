@@ -280,14 +280,7 @@ def _compare_rob(op: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs(a - b)
 
 
-_CMP = {
-    "<": np.less,
-    "<=": np.less_equal,
-    ">": np.greater,
-    ">=": np.greater_equal,
-    "==": np.equal,
-    "!=": np.not_equal,
-}
+_CMP = P.COMPARISONS
 
 
 @singledispatch

@@ -40,6 +40,7 @@ __all__ = [
     "PNot",
     "FUNCTIONS",
     "CONSTANTS",
+    "COMPARISONS",
     "evaluate",
     "variables",
     "is_boolean",
@@ -154,7 +155,7 @@ class Call(Pred):
         return f"{self.fn}({', '.join(str(a) for a in self.args)})"
 
 
-_CMP = {
+COMPARISONS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
     "<": np.less,
     "<=": np.less_equal,
     ">": np.greater,
@@ -162,6 +163,8 @@ _CMP = {
     "==": np.equal,
     "!=": np.not_equal,
 }
+"""The comparison operators of the spec language and their numpy functions."""
+_CMP = COMPARISONS
 
 
 @dataclass(frozen=True, slots=True)

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
+import strategies
 
 from mitlc import ast as A
 from mitlc.compile import compile_spec
@@ -14,35 +14,12 @@ from mitlc.parse import parse_formula, parse_spec
 
 PROPS = "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
 
-intervals = st.builds(
-    lambda lo, width, lc, hc, unbounded: A.Interval(lo, math.inf if unbounded else lo + width, lc, hc),
-    st.sampled_from([0.0, 0.5, 1.0, 2.0]),
-    st.sampled_from([0.0, 0.5, 1.0, 3.0]),
-    st.booleans(),
-    st.booleans(),
-    st.booleans(),
-).filter(lambda i: i.lo < i.hi or (i.lo_closed and i.hi_closed))
-
 
 def formulas(depth: int = 6) -> st.SearchStrategy[A.Formula]:
-    leaves = st.one_of(st.sampled_from([A.Atom(n) for n in "abcd"]), st.sampled_from([A.Const(True), A.Const(False)]))
-
-    def extend(inner: st.SearchStrategy[A.Formula]) -> st.SearchStrategy[A.Formula]:
-        return st.one_of(
-            st.builds(A.Not, inner),
-            st.builds(A.Weighted, st.sampled_from([0.5, 2.0, 10.0]), inner),
-            st.builds(A.Eventually, inner, intervals),
-            st.builds(A.Globally, inner, intervals),
-            st.builds(A.And, inner, inner),
-            st.builds(A.Or, inner, inner),
-            st.builds(A.Implies, inner, inner),
-            st.builds(A.Iff, inner, inner),
-            st.builds(A.Until, inner, inner, intervals),
-            st.builds(A.Release, inner, inner, intervals),
-            st.builds(A.WeakUntil, inner, inner, intervals),
-        )
-
-    return st.recursive(leaves, extend, max_leaves=12).filter(lambda f: A.depth(f) <= depth)
+    """Formulas over the four propositions, intervals on a 0.5 s grid, nested at most ``depth``."""
+    return strategies.formulas(atoms="abcd", interval=strategies.grid_intervals(0.5, 6), max_leaves=12).filter(
+        lambda f: A.depth(f) <= depth
+    )
 
 
 def subnet_invariants(net) -> None:
