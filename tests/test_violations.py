@@ -109,3 +109,89 @@ def test_violations_need_a_horizon() -> None:
 def test_spec_option() -> None:
     rs = compile_spec(parse_spec("option violations = counted\n" + P2_UNIT))
     assert rs.options.violations == "counted"
+
+
+# ----------------------------------------------------------------- the ordering guarantee
+from mitlc.monitor import monitor  # noqa: E402
+from mitlc.parse import parse_formula  # noqa: E402
+from mitlc.runtime import NetRuntime  # noqa: E402
+
+DT, STEPS = 0.03, 100
+
+
+def _returns(rs, x: np.ndarray) -> np.ndarray:
+    rt = NetRuntime(rs)
+    m = rt.reset(x[:, 0])
+    total = np.zeros(len(x))
+    for k in range(STEPS):
+        m_next = rt.step(m, x[:, k + 1], (k + 1) * DT)
+        total += rt.reward(m, m_next)
+        m = m_next
+    return total
+
+
+def _traces(rng: np.random.Generator, q0: tuple[float, float], designed: list[np.ndarray], n: int = 150) -> np.ndarray:
+    """Random smooth angle paths from the initial set, the designed ones, and noisy copies of them."""
+    t = np.arange(STEPS + 1) * DT
+    paths = []
+    for _ in range(n):
+        k = int(rng.integers(2, 7))
+        knots = np.linspace(0, t[-1], k)
+        values = rng.uniform(q0[0], q0[1]) + np.concatenate([[0.0], np.cumsum(rng.normal(0, 2.0, k - 1))])
+        paths.append(np.interp(t, knots, values))
+    for d in designed:
+        paths.append(d)
+        for _ in range(10):
+            paths.append(d + rng.normal(0, 0.15, d.shape) * (t > 0))
+    q = np.array(paths)
+    qdot = np.gradient(q, DT, axis=1)
+    q = (q + np.pi) % (2 * np.pi) - np.pi
+    return np.stack([q, qdot], axis=2)
+
+
+def _swing_clockwise() -> np.ndarray:
+    t = np.arange(STEPS + 1) * DT
+    return np.interp(t, [0, 2.0, 3.0], [2.77, 2 * np.pi, 2 * np.pi])
+
+
+def _timed_visit() -> np.ndarray:
+    t = np.arange(STEPS + 1) * DT
+    return np.where((t > 1) & (t <= 2), 3.0, 0.0)
+
+
+ORDERING = [
+    # spec, monitor formula (None: the spec's), initial angles, designed satisfying paths
+    ("p1_swing_up", None, (np.pi - 0.1, np.pi), [_swing_clockwise()]),
+    ("p2_avoid", None, (2.4, np.pi), [_swing_clockwise()]),
+    ("p3_avoid_speed_limit", None, (2.4, np.pi), [_swing_clockwise()]),
+    # problem 4: only its safety part is watched (G F is never violated on a finite trial)
+    ("p4_alternate", "G !psi", (-0.3, 0.3), [np.zeros(STEPS + 1)]),
+    # problem 5 under the net's (absolute-clock) reading
+    ("p5_timed_visit", "G[0,1] !kappa & G(1,2] kappa & G(2,3] !kappa", (-1.5, 1.5), [_timed_visit()]),
+]
+
+
+@pytest.mark.parametrize("name,formula,q0,designed", ORDERING, ids=[o[0] for o in ORDERING])
+def test_no_violating_trial_out_earns_a_satisfying_one(name, formula, q0, designed) -> None:
+    spec = load_spec(ROOT / "specs" / "pendulum" / f"{name}.mitl")
+    rng = np.random.default_rng(7)
+    x = _traces(rng, q0, designed)
+    verdict = monitor(spec, x, DT, parse_formula(formula) if formula else None).satisfied
+    assert verdict.any() and (~verdict).any(), "the sample must hold both kinds of trial"
+    returns = _returns(compile_spec(spec, CompileOptions(violations="permanent")), x)
+    assert returns[~verdict].max() < returns[verdict].min()
+
+
+def test_cutting_through_psi_pays_only_without_the_option() -> None:
+    """Figure 4-6b: with equal weights (4-15) the short way through psi earns more."""
+    spec = parse_spec(P2_UNIT)
+    t = np.arange(STEPS + 1) * DT
+    short = np.interp(t, [0, 0.5, 3.0], [2.77, 0.0, 0.0])  # straight through psi
+    long = _swing_clockwise()
+    q = np.array([short, long])
+    x = np.stack([(q + np.pi) % (2 * np.pi) - np.pi, np.gradient(q, DT, axis=1)], axis=2)
+    assert monitor(spec, x, DT).satisfied.tolist() == [False, True]
+    plain = _returns(compile_spec(spec), x)
+    assert plain[0] > plain[1]
+    aware = _returns(compile_spec(spec, CompileOptions(violations="permanent")), x)
+    assert aware[0] < aware[1]
