@@ -107,3 +107,4 @@ def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None
 main.add_command(__import__("mitlc.check_cmd", fromlist=["check"]).check)
 main.add_command(__import__("mitlc.train_cmd", fromlist=["train"]).train)
 main.add_command(__import__("mitlc.train_cmd", fromlist=["simulate"]).simulate)
+main.add_command(__import__("mitlc.sweep_cmd", fromlist=["sweep"]).sweep)
