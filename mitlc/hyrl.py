@@ -1,0 +1,750 @@
+"""HyRL: actor-critic learning on a hybrid automaton (thesis chapter 3).
+
+The learner sees the augmented state ``(q, qdot, q0, t, delta)``: the plant
+state, the memory of the automaton (initial position, mode clock; the clock
+only when the automaton's guards read one) and the mode.  Over normalised
+Gaussian RBFs ``phi`` on a grid over ``(q, qdot, q0[, t])`` (Table 3-2: 10 x
+10 x 5, and 10 x 10 x 5 x 5 with the clock):
+
+* value (3-7)/(3-8): a general part plus a mode part,
+  ``V = theta_g . phi + theta_delta . phi``;
+* policy (3-10): one per mode, no general part, ``pi = xi_delta . phi``;
+* standard actor-critic (section 2-1-3): TD error (2-8) ``delta = r + gamma
+  V(x_k+1) - V(x_k)``, critic (2-16)/(2-17) with accumulating eligibility
+  traces over the stacked parameters of (3-8) (the general row's gradient is
+  ``phi`` at every step, mode ``i``'s is ``eta_i(delta_k) phi``: a mode part
+  is updated only while its trace, laid down while it was active, lasts),
+  actor (2-11)/(2-18) ``xi_delta_k += alpha_a delta du phi(x_k)``.
+
+``R`` independent runs are trained at once (a leading run axis everywhere);
+run ``i`` draws its numbers from its own generators, spawned from the seed
+with :class:`numpy.random.SeedSequence`, so a seed reproduces a training to
+the bit.  Where the thesis is silent the choices are fields of
+:class:`HyrlSettings` (exploration, RBF width, anti-wind-up), as in
+:mod:`mitlc.sacpn`.
+
+>>> from mitlc.parse import parse_spec
+>>> spec = parse_spec('''
+... plant mass-damper
+... init q in [-1, 1], qdot = 0
+... setpoint 0
+... require overshoot <= 0''')
+>>> learner = train_hybrid(spec, runs=2, trials=2, seed=3)
+>>> learner.returns.shape, learner.xi.shape, learner.theta.shape   # I, E_Mp, S, P (+ general)
+((2, 2), (2, 4, 500), (2, 5, 500))
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from mitlc.automaton import HybridAutomaton, RewardConstants, compile_requirements
+from mitlc.criteria import Verdict, check
+from mitlc.errors import InputError, TrainingError
+from mitlc.plants import Plant
+from mitlc.spec import Spec
+
+__all__ = [
+    "HyrlSettings",
+    "GridFeatures",
+    "HybridLearner",
+    "HybridRollout",
+    "Evaluation",
+    "ComposedController",
+    "train_hybrid",
+    "evaluate",
+    "compose",
+    "load_learner",
+]
+
+
+@dataclass(frozen=True)
+class HyrlSettings:
+    """Settings of the HyRL learner; defaults are Table 3-2 where the thesis gives them."""
+
+    gamma: float = 0.98
+    """Discount factor (Table 3-2)."""
+
+    lam: float = 0.65
+    """Eligibility trace decay lambda (Table 3-2)."""
+
+    alpha_c: float = 0.3
+    """Critic learning rate (Table 3-2)."""
+
+    alpha_a: float = 0.08
+    """Actor learning rate (Table 3-2)."""
+
+    rbf: tuple[int, int, int] = (10, 10, 5)
+    """RBF centres for ``q``, ``qdot`` and ``q0`` (Table 3-2: 10 x 10 x 5)."""
+
+    rbf_clock: int = 5
+    """RBF centres per clock the automaton reads (``t``, ``tau``); section 3-3-2: 10 x 10 x 5 x 5."""
+
+    rbf_width: float = 1.0
+    """Gaussian width as a multiple of the centre spacing (thesis silent)."""
+
+    sigma: float = 1.0
+    """Exploration: ``du ~ N(0, sigma^2)`` per step, in N (thesis silent; 10% of u_max).
+    A larger noise keeps the mass from staying in the narrow S band of a small step
+    (the thesis's own observation for |q0| < 0.1, section 3-3-1)."""
+
+    trial_s: float | None = None
+    """Trial duration in s; ``None``: the spec's ``horizon``, else 5 s (Table 3-2)."""
+
+    dt: float | None = None
+    """Sample time; ``None``: the plant's ``dt`` (0.03 s, Table 3-2)."""
+
+    saturation: str = "applied"
+    """``applied``: clip the policy to the input bound and update with the exploration
+    actually applied (anti-wind-up, as :class:`mitlc.sacpn.SacpnSettings`).
+    ``none``: the thesis's update (2-18) with the raw exploration."""
+
+    bootstrap_timeout: bool = True
+    """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not a terminal state."""
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["rbf"] = list(self.rbf)
+        return d
+
+    @staticmethod
+    def from_dict(d: Mapping) -> "HyrlSettings":
+        d = dict(d)
+        if "rbf" in d:
+            d["rbf"] = tuple(int(n) for n in d["rbf"])
+        known = {f.name for f in dataclasses.fields(HyrlSettings)}
+        return HyrlSettings(**{k: v for k, v in d.items() if k in known})
+
+    def check(self) -> None:
+        if self.saturation not in ("applied", "none"):
+            raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
+        for name in ("gamma", "lam"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise TrainingError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        for name in ("alpha_c", "alpha_a", "rbf_width", "sigma"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise TrainingError(f"{name} must be a non-negative number, got {v}")
+        if len(self.rbf) != 3 or any(int(n) < 1 for n in self.rbf) or self.rbf_clock < 1:
+            raise TrainingError(f"rbf needs three positive counts (q, qdot, q0) and rbf_clock >= 1, got {self.rbf}")
+        for name in ("trial_s", "dt"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise TrainingError(f"{name} must be positive, got {v}")
+
+
+# ---------------------------------------------------------------- features
+
+
+class GridFeatures:
+    """Normalised Gaussian RBFs on a grid over a few variables, for a batch at once.
+
+    A normalised grid of Gaussians factorises into per-variable normalised
+    kernels, so ``phi`` is the outer product of one small vector per variable.
+    Values outside ``[lo, hi]`` are clipped (for the features only).
+
+    >>> f = GridFeatures(("q", "qdot"), ((-1.0, 1.0), (-5.0, 5.0)), (10, 10))
+    >>> phi = f(np.array([[0.0, 0.0], [1.0, -5.0]]))
+    >>> phi.shape, np.allclose(phi.sum(axis=1), 1.0)
+    ((2, 100), True)
+    """
+
+    def __init__(self, names: Sequence[str], bounds: Sequence[tuple[float, float]], counts: Sequence[int],
+                 width: float = 1.0) -> None:
+        self.names = tuple(names)
+        self.bounds = tuple((float(lo), float(hi)) for lo, hi in bounds)
+        self.counts = tuple(int(n) if hi > lo else 1 for n, (lo, hi) in zip(counts, self.bounds))
+        self.n_features = int(np.prod(self.counts))
+        self.centres = []
+        self.inv_w2 = []
+        for n, (lo, hi) in zip(self.counts, self.bounds):
+            c = np.linspace(lo, hi, n) if n > 1 else np.array([0.5 * (lo + hi)])
+            spacing = (hi - lo) / (n - 1) if n > 1 else 1.0
+            self.centres.append(c)
+            self.inv_w2.append(1.0 / (2.0 * (width * spacing) ** 2))
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        """Features ``(R, F)`` of ``z (R, len(names))``."""
+        R = z.shape[0]
+        phi = np.ones((R, 1))
+        for i, (c, k, (lo, hi)) in enumerate(zip(self.centres, self.inv_w2, self.bounds)):
+            if len(c) == 1:
+                continue
+            d = np.clip(z[:, i], lo, hi)[:, None] - c[None, :]
+            g = np.exp(-k * d * d)
+            g /= g.sum(axis=1, keepdims=True)
+            phi = (phi[:, :, None] * g[:, None, :]).reshape(R, -1)
+        return phi
+
+
+# ---------------------------------------------------------------- rollouts
+
+
+@dataclass
+class HybridRollout:
+    """Trajectories of the plant and the automaton: ``states (B, N+1, 2)``,
+    ``actions (B, N)``, ``modes (B, N+1)`` (indices into ``names``), clock
+    ``t (B, N+1)``, ``rewards (B, N)``; ``dt`` the sample time."""
+
+    states: np.ndarray
+    actions: np.ndarray
+    modes: np.ndarray
+    t: np.ndarray
+    rewards: np.ndarray
+    dt: float
+    names: tuple[str, ...]
+
+    @property
+    def returns(self) -> np.ndarray:
+        return self.rewards.sum(axis=1)
+
+    def visited(self, name: str) -> np.ndarray:
+        """Rollouts that were ever in mode ``name``, ``(B,)``."""
+        return (self.modes == self.names.index(name)).any(axis=1)
+
+    def final_mode(self) -> list[str]:
+        return [self.names[i] for i in self.modes[:, -1]]
+
+
+def _rollout(
+    automaton: HybridAutomaton,
+    plant: Plant,
+    params: Mapping[str, float],
+    n_steps: int,
+    x0: np.ndarray,
+    control: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float], np.ndarray],
+) -> HybridRollout:
+    """Greedy rollout of ``control(x, q0, t, mode, tau) -> u`` on the automaton."""
+    x = np.array(x0, dtype=float)
+    B = x.shape[0]
+    dt, u_max = float(params["dt"]), float(params["u_max"])
+    states = np.empty((B, n_steps + 1, 2))
+    actions = np.empty((B, n_steps))
+    modes = np.empty((B, n_steps + 1), dtype=np.int64)
+    clocks = np.empty((B, n_steps + 1))
+    rewards = np.empty((B, n_steps))
+    q0 = x[:, 0].copy()
+    mode, t = automaton.reset(x)
+    states[:, 0], modes[:, 0], clocks[:, 0] = x, mode, t
+    for k in range(n_steps):
+        u = np.clip(control(x, q0, t, mode, k * dt), -u_max, u_max)
+        x = plant.step(x, u, params)
+        mode, t, r = automaton.step(mode, t, x, q0, (k + 1) * dt, dt)
+        states[:, k + 1], modes[:, k + 1], clocks[:, k + 1] = x, mode, t
+        actions[:, k], rewards[:, k] = u, r
+    return HybridRollout(states, actions, modes, clocks, rewards, dt, automaton.names)
+
+
+# ---------------------------------------------------------------- the learner
+
+
+@dataclass
+class _Snapshot:
+    xi: np.ndarray
+    theta: np.ndarray
+    rng_states: list
+    trial: int
+
+
+class HybridLearner:
+    """HyRL for ``runs`` independent runs on one hybrid automaton.
+
+    ``xi (R, modes, F)``: one policy per mode (3-10); ``theta (R, modes + 1, F)``:
+    one value part per mode and the general part in the last row (3-8);
+    ``returns (R, trials)``: the undiscounted return of every trial.
+    """
+
+    def __init__(
+        self,
+        spec: Spec,
+        settings: HyrlSettings | None = None,
+        runs: int = 1,
+        seed: int = 0,
+        automaton: HybridAutomaton | None = None,
+    ) -> None:
+        settings = settings or HyrlSettings()
+        settings.check()
+        if runs < 1:
+            raise TrainingError(f"runs must be at least 1, got {runs}")
+        plant = spec.plant
+        if plant is None:
+            raise TrainingError("the spec names no plant (add 'plant mass-damper')")
+        self.spec, self.plant, self.settings = spec, plant, settings
+        self.automaton = automaton if automaton is not None else compile_requirements(spec)
+        self.runs, self.seed = int(runs), int(seed)
+        self.params = plant.params(dict(spec.plant_params))
+        if settings.dt is not None:
+            self.params["dt"] = float(settings.dt)
+        self.dt = float(self.params["dt"])
+        self.u_max = float(self.params["u_max"])
+        self.trial_s = float(settings.trial_s if settings.trial_s is not None else self.automaton.horizon)
+        self.n_steps = max(1, int(round(self.trial_s / self.dt)))
+        A = self.automaton
+        self.time_vars = A.time_vars()
+        names = ("q", "qdot", "q0") + self.time_vars
+        bounds = [(plant.var("q").lo, plant.var("q").hi), (plant.var("qdot").lo, plant.var("qdot").hi), A.q0_range]
+        bounds += [A.time_range(v) for v in self.time_vars]
+        counts = tuple(settings.rbf) + (settings.rbf_clock,) * len(self.time_vars)
+        self.features = GridFeatures(names, bounds, counts, settings.rbf_width)
+        self.n_features = self.features.n_features
+        self.n_modes = len(A.modes)
+        R, M, F = self.runs, self.n_modes, self.n_features
+        self.xi = np.zeros((R, M, F))
+        self.theta = np.zeros((R, M + 1, F))
+        self.returns = np.zeros((R, 0))
+        self.trial = 0
+        self.wall_s = 0.0
+        children = np.random.SeedSequence(self.seed).spawn(R)
+        pairs = [c.spawn(2) for c in children]
+        self.rngs = [np.random.Generator(np.random.PCG64(p[0])) for p in pairs]
+        self.eval_rngs = [np.random.Generator(np.random.PCG64(p[1])) for p in pairs]
+        self._snapshot: _Snapshot | None = None
+
+    # ------------------------------------------------------------ helpers
+    def phi(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
+        """Features of the augmented state, ``(R, F)``."""
+        cols = [x[:, 0], x[:, 1], q0]
+        for v in self.time_vars:
+            cols.append(t if v == "t" else np.broadcast_to(tau, q0.shape))
+        return self.features(np.stack(cols, axis=1))
+
+    def sample_init(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """One initial state per generator: ``q0`` and ``qdot0`` uniform in the spec's ranges."""
+        (qlo, qhi), (vlo, vhi) = self.automaton.q0_range, self.automaton.qdot0_range
+        x = np.empty((len(rngs), 2))
+        for r, g in enumerate(rngs):
+            x[r, 0] = g.uniform(qlo, qhi)
+            x[r, 1] = g.uniform(vlo, vhi)
+        return x
+
+    def policy(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float,
+               run: np.ndarray | None = None) -> np.ndarray:
+        """Greedy input of each row's mode policy, clipped to the input bound; row ``b``
+        uses run ``run[b]`` (default: row ``b`` is run ``b``)."""
+        run = np.arange(x.shape[0]) if run is None else run
+        phi = self.phi(x, q0, t, tau)
+        u = np.einsum("bf,bf->b", self.xi[run, mode], phi)
+        return np.clip(u, -self.u_max, self.u_max)
+
+    def value(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float) -> np.ndarray:
+        """Critic (3-7): general plus mode part, ``(R,)``."""
+        rows = np.arange(x.shape[0])
+        phi = self.phi(x, q0, t, tau)
+        return np.einsum("bf,bf->b", self.theta[rows, mode] + self.theta[rows, -1], phi)
+
+    # ------------------------------------------------------------ training
+    def train(self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None) -> np.ndarray:
+        """Run ``trials`` more trials on every run; returns their returns ``(R, trials)``.
+
+        ``callback(trial, returns)`` after each trial.  On KeyboardInterrupt the
+        learner is rolled back to the end of the last complete trial and the
+        interrupt re-raised (so a checkpoint saved then is consistent).
+        """
+        out = np.zeros((self.runs, trials))
+        done = 0
+        start = time.perf_counter()
+        try:
+            for k in range(trials):
+                self._snapshot = _Snapshot(self.xi.copy(), self.theta.copy(),
+                                           [g.bit_generator.state for g in self.rngs], self.trial)
+                with np.errstate(over="ignore", invalid="ignore"):  # divergence is reported below
+                    out[:, k] = self._trial()
+                self._check_finite(out[:, k])
+                self.trial += 1
+                done = k + 1
+                self.returns = np.concatenate([self.returns, out[:, k:k + 1]], axis=1)
+                if callback is not None:
+                    callback(self.trial, out[:, k])
+        except KeyboardInterrupt:
+            self._rollback()
+            raise
+        finally:
+            self.wall_s += time.perf_counter() - start
+        self._snapshot = None
+        return out[:, :done]
+
+    def _rollback(self) -> None:
+        s = self._snapshot
+        if s is None or s.trial != self.trial:
+            return
+        self.xi, self.theta = s.xi, s.theta
+        for g, st in zip(self.rngs, s.rng_states):
+            g.bit_generator.state = st
+        self._snapshot = None
+
+    def _check_finite(self, ret: np.ndarray) -> None:
+        for name, arr in (("actor", self.xi), ("critic", self.theta), ("return", ret)):
+            bad = ~np.isfinite(arr).reshape(self.runs, -1).all(axis=1)
+            if bad.any():
+                runs = ", ".join(str(int(i)) for i in np.flatnonzero(bad)[:10])
+                raise TrainingError(
+                    f"the {name} diverged (NaN or inf) in trial {self.trial + 1}, run(s) {runs}",
+                    hint="lower the learning rates (alpha_a, alpha_c) or the exploration sigma",
+                )
+
+    def _trial(self) -> np.ndarray:
+        """One trial of standard actor-critic on the hybrid system, all runs at once;
+        returns the undiscounted returns ``(R,)``."""
+        st = self.settings
+        A, plant, params = self.automaton, self.plant, self.params
+        R, N, dt, u_max = self.runs, self.n_steps, self.dt, self.u_max
+        gamma, gl = st.gamma, st.gamma * st.lam
+        a_c, a_a = st.alpha_c, st.alpha_a
+        applied = st.saturation == "applied"
+        rows = np.arange(R)
+        G = self.n_modes  # the general row of theta
+        xi, theta = self.xi, self.theta
+
+        x = self.sample_init(self.rngs)
+        noise = np.empty((N, R))
+        for r, g in enumerate(self.rngs):
+            noise[:, r] = g.standard_normal(N)
+        noise *= st.sigma
+        q0 = x[:, 0].copy()
+        mode, t = A.reset(x)
+        phi = self.phi(x, q0, t, 0.0)
+        # critic trace over the stacked parameters (3-8), stored scaled: e = scale * e_hat
+        e_hat = np.zeros_like(theta)
+        tmp = np.empty_like(theta)
+        scale = 1.0
+        ret = np.zeros(R)
+        u = np.einsum("rf,rf->r", xi[rows, mode], phi)
+        for k in range(N):
+            if applied:
+                u_sat = np.clip(u, -u_max, u_max)
+                a = np.clip(u_sat + noise[k], -u_max, u_max)
+                du = a - u_sat
+            else:
+                a = u + noise[k]
+                du = noise[k]
+            x = plant.step(x, a, params)
+            tau1 = (k + 1) * dt
+            mode1, t1, r = A.step(mode, t, x, q0, tau1, dt)
+            ret += r
+            phi1 = self.phi(x, q0, t1, tau1)
+            v0 = np.einsum("rf,rf->r", theta[rows, mode] + theta[:, G], phi)
+            v1 = np.einsum("rf,rf->r", theta[rows, mode1] + theta[:, G], phi1)
+            delta = r - v0
+            if k < N - 1 or st.bootstrap_timeout:
+                delta += gamma * v1
+            # actor (2-18) on the policy of the mode that acted (3-10)
+            coef = a_a * delta * du
+            if applied:  # never push a saturated output further past the bound
+                coef[((u >= u_max) & (coef > 0)) | ((u <= -u_max) & (coef < 0))] = 0.0
+            xi[rows, mode] += coef[:, None] * phi
+            # critic (2-16)/(2-17): e <- gamma lambda e + grad V(x_k); theta += alpha delta e
+            scale *= gl
+            if scale < 1e-100:
+                e_hat *= scale
+                scale = 1.0
+            grad = phi * (1.0 / scale)
+            e_hat[rows, mode] += grad
+            e_hat[:, G] += grad
+            np.multiply(e_hat, (a_c * scale * delta)[:, None, None], out=tmp)
+            theta += tmp
+            mode, t, phi = mode1, t1, phi1
+            u = np.einsum("rf,rf->r", xi[rows, mode], phi)
+        return ret
+
+    # ------------------------------------------------------------ evaluation
+    def control(self, run: np.ndarray) -> Callable[..., np.ndarray]:
+        """The greedy controller ``(x, q0, t, mode, tau) -> u`` of row ``b``'s run ``run[b]``."""
+        return lambda x, q0, t, mode, tau: self.policy(x, q0, t, mode, tau, run)
+
+    def rollout(self, x0: np.ndarray, run: np.ndarray | None = None) -> HybridRollout:
+        """Greedy rollouts (no exploration, no learning) from ``x0 (B, 2)``; row ``b``
+        uses run ``run[b]`` (default ``b % R``)."""
+        x0 = np.asarray(x0, dtype=float)
+        run = np.arange(x0.shape[0]) % self.runs if run is None else np.asarray(run)
+        return _rollout(self.automaton, self.plant, self.params, self.n_steps, x0, self.control(run))
+
+    # ------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict[str, np.ndarray]:
+        meta = {
+            "kind": "hyrl",
+            "trial": self.trial,
+            "runs": self.runs,
+            "seed": self.seed,
+            "wall_s": self.wall_s,
+            "settings": self.settings.to_dict(),
+            "rng_states": [g.bit_generator.state for g in self.rngs],
+            "eval_rng_states": [g.bit_generator.state for g in self.eval_rngs],
+            "modes": list(self.automaton.names),
+            "feature_vars": list(self.features.names),
+            "spec_source": self.spec.source or "",
+            "spec_path": self.spec.path or "",
+        }
+        return {
+            "xi": self.xi,
+            "theta": self.theta,
+            "returns": self.returns,
+            "meta": np.array(json.dumps(meta, default=_json_default)),
+        }
+
+    def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
+        meta = json.loads(str(d["meta"]))
+        if meta.get("kind") != "hyrl":
+            raise InputError("not a HyRL checkpoint")
+        shape = (self.runs, self.n_modes, self.n_features)
+        if meta["runs"] != self.runs or tuple(d["xi"].shape) != shape:
+            raise InputError(f"checkpoint holds {meta['runs']} runs of shape {tuple(d['xi'].shape)}, expected {shape}")
+        if meta["modes"] != list(self.automaton.names):
+            raise InputError("checkpoint was trained on a different hybrid automaton")
+        self.xi = np.array(d["xi"], dtype=float)
+        self.theta = np.array(d["theta"], dtype=float)
+        self.returns = np.array(d["returns"], dtype=float).reshape(self.runs, -1)
+        self.trial = int(meta["trial"])
+        self.seed = int(meta["seed"])
+        self.wall_s = float(meta.get("wall_s", 0.0))
+        for g, s in zip(self.rngs, meta["rng_states"]):
+            g.bit_generator.state = s
+        for g, s in zip(self.eval_rngs, meta["eval_rng_states"]):
+            g.bit_generator.state = s
+
+    def to_bytes(self) -> bytes:
+        """The learner's state as ``.npz`` bytes."""
+        import io
+
+        buf = io.BytesIO()
+        np.savez(buf, **self.state_dict())
+        return buf.getvalue()
+
+    def save(self, path: str | Path) -> None:
+        """Write the learner's state to ``path`` (.npz) atomically."""
+        path = Path(path)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent or Path("."))
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(self.to_bytes())
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+
+
+def _json_default(o):
+    if isinstance(o, np.integer):
+        return int(o)
+    raise TypeError(type(o).__name__)
+
+
+def load_learner(path: str | Path) -> HybridLearner:
+    """Rebuild a learner from a checkpoint written by :meth:`HybridLearner.save`
+    (the spec's text travels inside it)."""
+    from mitlc.parse import parse_spec
+
+    try:
+        with np.load(path, allow_pickle=False) as d:
+            data = {k: d[k] for k in d.files}
+        meta = json.loads(str(data["meta"]))
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
+    if meta.get("kind") != "hyrl":
+        raise InputError("not a HyRL checkpoint", file=str(path))
+    spec = parse_spec(meta["spec_source"], meta["spec_path"] or None)
+    learner = HybridLearner(spec, HyrlSettings.from_dict(meta["settings"]), runs=int(meta["runs"]),
+                            seed=int(meta["seed"]))
+    learner.load_state_dict(data)
+    return learner
+
+
+def train_hybrid(
+    spec: Spec,
+    settings: HyrlSettings | None = None,
+    runs: int = 1,
+    trials: int = 800,
+    seed: int = 0,
+    progress: Callable[[int, np.ndarray], None] | None = None,
+) -> HybridLearner:
+    """Compile ``spec``'s requirements to a hybrid automaton and train HyRL on it.
+
+    Returns the learner: ``returns (runs, trials)``, parameters ``xi``, ``theta``,
+    ``wall_s``; :meth:`HybridLearner.rollout` for greedy rollouts.
+    ``progress(trial, returns)`` is called after every trial.
+    """
+    learner = HybridLearner(spec, settings, runs=runs, seed=seed)
+    learner.train(trials, progress)
+    return learner
+
+
+# ---------------------------------------------------------------- evaluation
+
+
+@dataclass
+class Evaluation:
+    """Greedy rollouts of every run from a grid of initial positions, judged by
+    :mod:`mitlc.criteria`: ``passed (R, n)`` (all requirements), ``measured[name]
+    (R, n)``, ``q0 (n,)``; ``visited_p (R, n)``: the automaton reached P."""
+
+    q0: np.ndarray
+    passed: np.ndarray
+    measured: dict[str, np.ndarray]
+    passed_each: dict[str, np.ndarray]
+    visited_p: np.ndarray
+    rollout: HybridRollout
+
+    def run_success(self, where: np.ndarray | None = None) -> np.ndarray:
+        """Runs whose greedy policy meets every requirement from every initial state
+        (of those selected by ``where``), ``(R,)``."""
+        sel = np.ones(len(self.q0), dtype=bool) if where is None else np.asarray(where)
+        return self.passed[:, sel].all(axis=1)
+
+    def success_rate(self, where: np.ndarray | None = None) -> float:
+        """Fraction of runs meeting the criteria from all (selected) initial states."""
+        return float(self.run_success(where).mean())
+
+    def state_rate(self, where: np.ndarray | None = None) -> float:
+        """Fraction of (run, initial state) pairs meeting the criteria."""
+        sel = np.ones(len(self.q0), dtype=bool) if where is None else np.asarray(where)
+        return float(self.passed[:, sel].mean())
+
+
+def _judge(spec_or_automaton: Spec | HybridAutomaton, ro: HybridRollout) -> Verdict:
+    if isinstance(spec_or_automaton, HybridAutomaton):
+        return check(spec_or_automaton.requirements, ro.states[:, :, 0], ro.dt, spec_or_automaton.setpoint)
+    return check(spec_or_automaton, ro.states[:, :, 0], ro.dt)
+
+
+def _grid_evaluation(automaton: HybridAutomaton, runs: int, n_init: int,
+                     roll: Callable[[np.ndarray, np.ndarray], HybridRollout]) -> Evaluation:
+    lo, hi = automaton.q0_range
+    q0 = np.linspace(lo, hi, n_init)
+    R = runs
+    x0 = np.zeros((R * n_init, 2))
+    x0[:, 0] = np.tile(q0, R)
+    x0[:, 1] = 0.5 * sum(automaton.qdot0_range)
+    run = np.repeat(np.arange(R), n_init)
+    ro = roll(x0, run)
+    v = _judge(automaton, ro)
+    shape = (R, n_init)
+    return Evaluation(
+        q0=q0,
+        passed=v.all.reshape(shape),
+        measured={k: m.reshape(shape) for k, m in v.measured.items()},
+        passed_each={k: p.reshape(shape) for k, p in v.passed.items()},
+        visited_p=ro.visited("P").reshape(shape),
+        rollout=ro,
+    )
+
+
+def evaluate(learner: HybridLearner, n_init: int = 50) -> Evaluation:
+    """Greedy rollouts of every run from ``n_init`` initial positions evenly spaced over
+    the spec's initial range (velocity at the middle of its range), judged by the checker."""
+    return _grid_evaluation(learner.automaton, learner.runs, n_init, learner.rollout)
+
+
+# ---------------------------------------------------------------- composition
+
+
+class ComposedController:
+    """Policies learned separately, run on a combined automaton (section 3-3-3).
+
+    ``assignment[mode] = (learner, learner_mode)``: in ``mode`` the composed
+    controller applies ``learner``'s greedy policy of ``learner_mode``, on that
+    learner's own features (the combined automaton's ``q0``, clock and trial
+    time feed them).  Run ``r`` of the composition uses run ``r`` of every learner.
+    """
+
+    def __init__(self, automaton: HybridAutomaton, assignment: Mapping[str, tuple[HybridLearner, str]],
+                 plant: Plant, params: Mapping[str, float], n_steps: int) -> None:
+        self.automaton = automaton
+        self.assignment = dict(assignment)
+        self.plant, self.params, self.n_steps = plant, dict(params), int(n_steps)
+        self.learners: list[HybridLearner] = []
+        for lrn, _ in self.assignment.values():
+            if all(lrn is not other for other in self.learners):
+                self.learners.append(lrn)
+        self.runs = min(lrn.runs for lrn in self.learners)
+        # per combined mode: (learner index, learner's mode index)
+        self._table = []
+        for m in automaton.names:
+            lrn, src = self.assignment[m]
+            self._table.append((next(i for i, o in enumerate(self.learners) if o is lrn), lrn.automaton.index(src)))
+
+    def describe(self) -> dict[str, str]:
+        """``mode -> "spec:mode"`` of the policy used in each mode."""
+        out = {}
+        for m, (lrn, src) in self.assignment.items():
+            out[m] = f"{Path(lrn.spec.path or 'spec').stem}:{src}"
+        return out
+
+    def control(self, run: np.ndarray) -> Callable[..., np.ndarray]:
+        def u_of(x, q0, t, mode, tau):
+            phis = [lrn.phi(x, q0, t, tau) for lrn in self.learners]
+            u = np.zeros(x.shape[0])
+            for m, (li, src) in enumerate(self._table):
+                sel = mode == m
+                if sel.any():
+                    xi = self.learners[li].xi[run[sel], src]
+                    u[sel] = np.einsum("bf,bf->b", xi, phis[li][sel])
+            return u
+
+        return u_of
+
+    def rollout(self, x0: np.ndarray, run: np.ndarray | None = None) -> HybridRollout:
+        x0 = np.asarray(x0, dtype=float)
+        run = np.arange(x0.shape[0]) % self.runs if run is None else np.asarray(run)
+        return _rollout(self.automaton, self.plant, self.params, self.n_steps, x0, self.control(run))
+
+    def evaluate(self, n_init: int = 50) -> Evaluation:
+        return _grid_evaluation(self.automaton, self.runs, n_init, self.rollout)
+
+
+def compose(
+    spec: Spec,
+    learners: Sequence[HybridLearner],
+    assignment: Mapping[str, tuple[HybridLearner, str]] | None = None,
+    constants: RewardConstants | None = None,
+) -> ComposedController:
+    """Run ``spec``'s combined automaton with policies learned separately (section 3-3-3).
+
+    By default each evaluating mode takes the policy of the same mode from the
+    first learner that has it; ``I`` takes the policy of the learner of the
+    first evaluating mode, ``S`` and ``P`` those of the learner of the last
+    (the mode reached just before them).  ``assignment`` overrides any mode.
+    """
+    if not learners:
+        raise TrainingError("compose needs at least one trained learner")
+    automaton = compile_requirements(spec, constants)
+    chosen: dict[str, tuple[HybridLearner, str]] = {}
+    owner: dict[str, HybridLearner] = {}
+    for e in automaton.evaluating:
+        lrn = next((lrn for lrn in learners if e in lrn.automaton.names), None)
+        if lrn is not None:
+            owner[e] = lrn
+            chosen[e] = (lrn, e)
+    given = dict(assignment or {})
+    evaluating = automaton.evaluating
+    if evaluating and evaluating[0] in owner:
+        chosen["I"] = (owner[evaluating[0]], "I")
+    if evaluating and evaluating[-1] in owner:
+        for m in ("S", "P"):
+            chosen[m] = (owner[evaluating[-1]], m)
+    chosen.update(given)
+    missing = [m for m in automaton.names if m not in chosen]
+    if missing:
+        raise TrainingError(
+            f"no learned policy for mode(s) {', '.join(missing)} of the combined automaton",
+            hint="train a spec with that criterion, or pass an assignment",
+        )
+    for m, (lrn, src) in chosen.items():
+        if src not in lrn.automaton.names:
+            raise TrainingError(f"mode {m}: the learner of {lrn.spec.path or 'its spec'} has no mode '{src}'")
+    first = next(iter(learners))
+    plant = spec.plant or first.plant
+    params = plant.params(dict(spec.plant_params))
+    if first.settings.dt is not None:
+        params["dt"] = float(first.settings.dt)
+    n_steps = max(1, int(round(automaton.horizon / float(params["dt"]))))
+    return ComposedController(automaton, chosen, plant, params, n_steps)

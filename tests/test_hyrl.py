@@ -1,0 +1,233 @@
+"""HyRL: the batched learner against a plain per-run loop of section 2-1-3 / (3-7)..(3-10),
+seeding, checkpoints, learning, composition (section 3-3-3)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mitlc.automaton import compile_requirements
+from mitlc.criteria import check
+from mitlc.errors import TrainingError
+from mitlc.hyrl import (
+    HybridLearner,
+    HyrlSettings,
+    compose,
+    evaluate,
+    load_learner,
+    train_hybrid,
+)
+from mitlc.parse import load_spec, parse_spec
+
+OVERSHOOT = """plant mass-damper
+init q in [-1, 1], qdot = 0
+setpoint 0
+require overshoot <= 0
+"""
+SHORT = HyrlSettings(trial_s=0.45)  # 15 steps
+
+
+@pytest.fixture(scope="module")
+def md_specs():
+    d = Path(__file__).resolve().parent.parent / "specs" / "mass_damper"
+    return {n: load_spec(d / f"{n}.mitl") for n in ("overshoot", "rise_time", "overshoot_rise_time")}
+
+
+# ------------------------------------------------------------------ the update rules
+
+
+def reference_trials(spec, settings, runs, seed, trials):
+    """Standard actor-critic on the hybrid automaton, one run at a time, no tricks:
+    V = (theta_delta + theta_g) . phi (3-7), pi = xi_delta . phi (3-10), TD error (2-8),
+    accumulating trace (2-16), critic (2-17), actor (2-18) with the applied exploration."""
+    learner = HybridLearner(spec, settings, runs=1, seed=0)  # for its features and automaton only
+    A, plant, params = learner.automaton, learner.plant, learner.params
+    M, F = learner.n_modes, learner.n_features
+    G = M
+    N, dt, u_max = learner.n_steps, learner.dt, learner.u_max
+    st = settings
+    out_returns = np.zeros((runs, trials))
+    xis, thetas = [], []
+    children = np.random.SeedSequence(seed).spawn(runs)
+    for r in range(runs):
+        rng = np.random.Generator(np.random.PCG64(children[r].spawn(2)[0]))
+        xi = np.zeros((M, F))
+        theta = np.zeros((M + 1, F))
+        for trial in range(trials):
+            (qlo, qhi), (vlo, vhi) = A.q0_range, A.qdot0_range
+            x = np.array([[rng.uniform(qlo, qhi), rng.uniform(vlo, vhi)]])
+            noise = rng.standard_normal(N) * st.sigma
+            q0 = x[:, 0].copy()
+            mode, t = A.reset(x)
+            phi = learner.phi(x, q0, t, 0.0)[0]
+            e = np.zeros((M + 1, F))
+            ret = 0.0
+            for k in range(N):
+                m = int(mode[0])
+                u = xi[m] @ phi
+                u_sat = min(max(u, -u_max), u_max)
+                a = min(max(u_sat + noise[k], -u_max), u_max)
+                du = a - u_sat
+                x = plant.step(x, np.array([a]), params)
+                mode1, t1, rew = A.step(mode, t, x, q0, (k + 1) * dt, dt)
+                m1 = int(mode1[0])
+                phi1 = learner.phi(x, q0, t1, (k + 1) * dt)[0]
+                delta = rew[0] + st.gamma * (theta[m1] + theta[G]) @ phi1 - (theta[m] + theta[G]) @ phi
+                coef = st.alpha_a * delta * du
+                if (u >= u_max and coef > 0) or (u <= -u_max and coef < 0):
+                    coef = 0.0
+                xi[m] += coef * phi
+                e *= st.gamma * st.lam
+                e[m] += phi
+                e[G] += phi
+                theta += st.alpha_c * delta * e
+                ret += rew[0]
+                mode, t, phi = mode1, t1, phi1
+            out_returns[r, trial] = ret
+        xis.append(xi)
+        thetas.append(theta)
+    return out_returns, np.array(xis), np.array(thetas)
+
+
+@pytest.mark.parametrize("name", ["overshoot", "rise_time"])
+def test_batched_learner_equals_the_per_run_loop(md_specs, name):
+    spec = md_specs[name]
+    settings = dataclasses.replace(SHORT, sigma=3.0)
+    learner = HybridLearner(spec, settings, runs=3, seed=11)
+    returns = learner.train(4)
+    ref_returns, ref_xi, ref_theta = reference_trials(spec, settings, 3, 11, 4)
+    np.testing.assert_allclose(returns, ref_returns, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(learner.xi, ref_xi, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(learner.theta, ref_theta, rtol=1e-8, atol=1e-10)
+    assert np.abs(learner.xi).max() > 0.01 and np.abs(learner.theta).max() > 0.01  # it did learn something
+
+
+def test_value_is_general_plus_mode_part_and_policy_is_per_mode():
+    learner = HybridLearner(parse_spec(OVERSHOOT), runs=2, seed=0)
+    # normalised RBFs sum to one, so constant rows give constant outputs
+    learner.xi[:, :, :] = np.array([1.0, -2.0, 3.0, 20.0])[None, :, None]
+    learner.theta[:, :, :] = np.array([10.0, 20.0, 30.0, 40.0, 0.5])[None, :, None]
+    x = np.array([[-0.3, 0.1], [0.2, -1.0]])
+    q0 = np.array([-1.0, 1.0])
+    t = np.zeros(2)
+    for m, u in enumerate([1.0, -2.0, 3.0, 10.0]):  # P's 20 is clipped to u_max = 10
+        mode = np.full(2, m)
+        np.testing.assert_allclose(learner.policy(x, q0, t, mode, 0.0), u)
+        np.testing.assert_allclose(learner.value(x, q0, t, mode, 0.0), [10.0, 20.0, 30.0, 40.0][m] + 0.5)
+
+
+def test_features_follow_table_3_2(md_specs):
+    o = HybridLearner(md_specs["overshoot"], runs=1)
+    r = HybridLearner(md_specs["rise_time"], runs=1)
+    assert o.features.names == ("q", "qdot", "q0") and o.n_features == 10 * 10 * 5
+    assert r.features.names == ("q", "qdot", "q0", "t") and r.n_features == 10 * 10 * 5 * 5
+    assert r.features.bounds == ((-1.0, 1.0), (-5.0, 5.0), (-1.0, -0.5), (0.0, 0.8))
+    assert o.n_steps == 167 and o.dt == 0.03  # T_t = 5 s, T_s = 0.03 s
+    s = HybridLearner(parse_spec(OVERSHOOT + "require settling_time <= 2\n"), runs=1)
+    assert s.features.names == ("q", "qdot", "q0", "tau") and s.features.bounds[3] == (0.0, 5.0)
+
+
+# ------------------------------------------------------------------ seeding and checkpoints
+
+
+def test_same_seed_gives_identical_returns_and_parameters():
+    spec = parse_spec(OVERSHOOT)
+    a = train_hybrid(spec, SHORT, runs=3, trials=5, seed=7)
+    b = train_hybrid(spec, SHORT, runs=3, trials=5, seed=7)
+    c = train_hybrid(spec, SHORT, runs=3, trials=5, seed=8)
+    assert np.array_equal(a.returns, b.returns) and np.array_equal(a.xi, b.xi) and np.array_equal(a.theta, b.theta)
+    assert not np.array_equal(a.returns, c.returns)
+
+
+def test_a_run_does_not_depend_on_how_many_runs_share_the_batch():
+    spec = parse_spec(OVERSHOOT)
+    one = train_hybrid(spec, SHORT, runs=1, trials=4, seed=5)
+    three = train_hybrid(spec, SHORT, runs=3, trials=4, seed=5)
+    assert np.array_equal(one.returns[0], three.returns[0])
+    assert np.array_equal(one.xi[0], three.xi[0])
+
+
+def test_checkpoint_resume_and_interrupt_are_bit_exact(tmp_path):
+    spec = parse_spec(OVERSHOOT)
+    straight = train_hybrid(spec, SHORT, runs=2, trials=4, seed=3)
+
+    def stop_after_two(trial, returns):
+        if trial == 2:
+            raise KeyboardInterrupt
+
+    first = HybridLearner(spec, SHORT, runs=2, seed=3)
+    with pytest.raises(KeyboardInterrupt):
+        first.train(4, stop_after_two)
+    assert first.trial == 2 and first.returns.shape == (2, 2)
+    first.save(tmp_path / "params.npz")
+    resumed = load_learner(tmp_path / "params.npz")
+    resumed.train(2)
+    assert np.array_equal(resumed.returns, straight.returns)
+    assert np.array_equal(resumed.xi, straight.xi) and np.array_equal(resumed.theta, straight.theta)
+
+
+def test_divergence_and_bad_settings_are_training_errors():
+    spec = parse_spec(OVERSHOOT)
+    with pytest.raises(TrainingError, match="diverged"):
+        train_hybrid(spec, HyrlSettings(alpha_c=1e4, trial_s=3.0), runs=2, trials=3, seed=0)
+    with pytest.raises(TrainingError, match="gamma"):
+        HybridLearner(spec, HyrlSettings(gamma=1.5))
+    with pytest.raises(TrainingError, match="saturation"):
+        HybridLearner(spec, HyrlSettings(saturation="maybe"))
+    with pytest.raises(TrainingError, match="names no plant"):
+        HybridLearner(parse_spec("init q in [-1, 1]\nrequire overshoot <= 0\n"))
+
+
+# ------------------------------------------------------------------ learning
+
+
+def test_short_training_improves_the_return():
+    # the thesis: "for a fixed initial value of -1, the learning curve converged very nicely"
+    spec = parse_spec(OVERSHOOT.replace("q in [-1, 1]", "q = -1"))
+    learner = train_hybrid(spec, HyrlSettings(trial_s=3.0), runs=4, trials=300, seed=2)
+    first, last = learner.returns[:, :30].mean(), learner.returns[:, -30:].mean()
+    assert last > first + 150, (first, last)
+    ev = evaluate(learner, n_init=1)
+    assert not ev.visited_p.any()  # the greedy policies never overshoot
+
+
+def test_greedy_rollouts_and_evaluation():
+    spec = parse_spec(OVERSHOOT)
+    learner = train_hybrid(spec, SHORT, runs=2, trials=3, seed=1)
+    ro1 = learner.rollout(np.array([[-1.0, 0.0], [0.5, 0.0], [-0.2, 0.0]]))
+    ro2 = learner.rollout(np.array([[-1.0, 0.0], [0.5, 0.0], [-0.2, 0.0]]))
+    assert np.array_equal(ro1.states, ro2.states) and ro1.states.shape == (3, 16, 2)
+    ev = evaluate(learner, n_init=6)
+    np.testing.assert_allclose(ev.q0, np.linspace(-1, 1, 6))
+    v = check(spec, ev.rollout.states[:, :, 0], learner.dt)
+    np.testing.assert_array_equal(ev.passed.ravel(), v.all)
+    assert ev.passed.shape == (2, 6) and 0.0 <= ev.success_rate() <= ev.state_rate() <= 1.0
+
+
+# ------------------------------------------------------------------ composition
+
+
+def test_composition_runs_each_mode_with_the_policy_learned_for_it(md_specs):
+    rise = HybridLearner(md_specs["rise_time"], runs=2, seed=0)
+    over = HybridLearner(md_specs["overshoot"], runs=2, seed=0)
+    # hand-set policies: constants per mode (normalised features sum to one)
+    rise.xi[:, rise.automaton.index("I"), :] = 1.0
+    rise.xi[:, rise.automaton.index("E_tr"), :] = 2.5
+    over.xi[:, over.automaton.index("E_Mp"), :] = -4.0
+    over.xi[:, over.automaton.index("S"), :] = 0.25
+    over.xi[:, over.automaton.index("P"), :] = -0.5
+    ctl = compose(md_specs["overshoot_rise_time"], [rise, over])
+    assert ctl.describe() == {"E_tr": "rise_time:E_tr", "E_Mp": "overshoot:E_Mp", "I": "rise_time:I",
+                              "S": "overshoot:S", "P": "overshoot:P"}
+    ro = ctl.rollout(np.array([[-1.0, 0.0], [-0.6, 0.0]]))
+    expected = {"I": 1.0, "E_tr": 2.5, "E_Mp": -4.0, "S": 0.25, "P": -0.5}
+    names = ctl.automaton.names
+    for b in range(2):
+        want = [expected[names[m]] for m in ro.modes[b, :-1]]
+        np.testing.assert_allclose(ro.actions[b], want)
+    assert set(names[m] for m in np.unique(ro.modes)) >= {"I", "E_tr"}
+    with pytest.raises(TrainingError, match="no learned policy for mode"):
+        compose(md_specs["overshoot_rise_time"], [over])
