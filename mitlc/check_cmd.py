@@ -20,7 +20,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from mitlc.cli import handle_errors
+from mitlc.cliutil import handle_errors
 from mitlc.errors import InputError, MitlError
 
 __all__ = ["check", "read_trace", "Trace"]

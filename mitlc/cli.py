@@ -6,51 +6,13 @@ there is one) on stderr and exit code 2; never a traceback.
 
 from __future__ import annotations
 
-import functools
-import os
-import sys
-import tempfile
-from pathlib import Path
-from typing import Any, Callable
-
 import click
 
 from mitlc import __version__
-from mitlc.errors import InputError, MitlError
+from mitlc.cliutil import atomic_write, handle_errors
+from mitlc.errors import InputError
 
 __all__ = ["main", "handle_errors", "atomic_write"]
-
-
-def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """Turn :class:`MitlError` into a clean message and exit code 2."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return fn(*args, **kwargs)
-        except MitlError as exc:
-            click.echo(exc.render(), err=True)
-            sys.exit(2)
-
-    return wrapper
-
-
-def atomic_write(path: str | Path, data: bytes | str) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename."""
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise InputError(f"output directory does not exist: {directory}", file=str(path))
-    payload = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=directory)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(payload)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -104,7 +66,10 @@ def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None
 
 # Commands from other stages register here, one line each.
 # (keep this block: helpers add `main.add_command(...)` lines below)
-main.add_command(__import__("mitlc.check_cmd", fromlist=["check"]).check)
-main.add_command(__import__("mitlc.train_cmd", fromlist=["train"]).train)
-main.add_command(__import__("mitlc.train_cmd", fromlist=["simulate"]).simulate)
+from mitlc.check_cmd import check  # noqa: E402
+from mitlc.train_cmd import simulate, train  # noqa: E402
+
+main.add_command(check)
+main.add_command(train)
+main.add_command(simulate)
 main.add_command(__import__("mitlc.sweep_cmd", fromlist=["sweep"]).sweep)

@@ -18,16 +18,15 @@ was never interrupted.
 
 from __future__ import annotations
 
-import functools
 import json
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
 
 import click
 import numpy as np
 
+from mitlc.cliutil import atomic_write, handle_errors
 from mitlc.errors import InputError, TrainingError
 
 __all__ = ["train", "simulate", "find_default_spec", "SPECS_DIRS"]
@@ -38,29 +37,6 @@ SPECS_DIRS = (
     Path(__file__).resolve().parent / "specs_data",  # a copy shipped inside the package
 )
 """Where a plant's ``default_spec`` (a path such as ``pendulum/p2_avoid.mitl``) is looked up."""
-
-
-def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """:func:`mitlc.cli.handle_errors`, looked up at call time.
-
-    ``mitlc.cli`` imports this module to register its commands, so importing
-    ``mitlc.cli`` here at load time would be circular.
-    """
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from mitlc.cli import handle_errors as cli_handle_errors
-
-        return cli_handle_errors(fn)(*args, **kwargs)
-
-    return wrapper
-
-
-def atomic_write(path: str | Path, data: bytes | str) -> None:
-    """:func:`mitlc.cli.atomic_write` (imported at call time, see :func:`handle_errors`)."""
-    from mitlc.cli import atomic_write as cli_atomic_write
-
-    cli_atomic_write(path, data)
 
 
 def find_default_spec(plant_name: str) -> Path:
