@@ -286,3 +286,19 @@ def test_pendulum_input_saturates_and_velocity_is_bounded():
     fast = np.array([[0.0, 15 * math.pi]])
     out = PEND.step(fast.copy(), np.array([3.0]), PEND.params({"u_max": 3.0}))
     assert abs(out[0, 1]) <= 15 * math.pi
+
+
+def test_compiled_predicates_agree_with_the_reference():
+    from mitlc import predicates as Pr
+    from mitlc.runtime import compile_predicate
+
+    spec = parse_spec(
+        "plant pendulum\nprop a = -pi < q < -pi + 0.5 or pi - 0.5 < q < pi\n"
+        "prop b = not (abs(qdot) >= 2 * 5) and sin(q) - -q / 2 > min(0.1, cos(qdot))\nformula G a & F b"
+    )
+    rng = np.random.default_rng(3)
+    x = np.column_stack([rng.uniform(-4, 4, 500), rng.uniform(-20, 20, 500)])
+    cols = {"q": 0, "qdot": 1}
+    for prop in spec.props:
+        ref = Pr.evaluate(prop.pred, {"q": x[:, 0], "qdot": x[:, 1]})
+        np.testing.assert_array_equal(compile_predicate(prop.pred, cols)(x), ref)
