@@ -19,7 +19,7 @@ weights whose subformulas use the same propositions:
 
 >>> from mitlc.parse import parse_formula
 >>> for s in weight_sites(parse_formula("2 * !kappa U(1,2] (3 * kappa U(2,inf) G !kappa) & 5 * G psi")):
-...     print(s.axis, s.value, "|", s.text)
+...     print(s.axis, format_value(s.value), "|", s.text)
 weight.kappa.1 2 | 2 * !kappa
 weight.kappa.2 3 | 3 * kappa
 weight.psi 5 | 5 * G psi
@@ -77,6 +77,7 @@ __all__ = [
     "run_sweep",
     "summarize",
     "format_table",
+    "heatmap_grid",
     "heatmap_figure",
     "format_value",
     "default_workers",
@@ -712,9 +713,12 @@ class LocalBackend:
 
     name = "local"
 
-    def __init__(self, workers: int | None = None, max_retries: int = 3) -> None:
+    def __init__(self, workers: int | None = None, max_retries: int = 3,
+                 on_retry: Callable[[dict, int], None] | None = None) -> None:
         self.workers = int(workers or default_workers())
         self.max_retries = int(max_retries)
+        self.on_retry = on_retry
+        """Called with the payload and the attempt about to start when a lost task is run again."""
         if self.workers < 1:
             raise InputError("--workers must be at least 1", file="--workers")
 
@@ -758,6 +762,8 @@ class LocalBackend:
                             yield p, WorkerLost(f"its worker died {losses[p['key']]} times")
                         else:
                             queue.appendleft(p)
+                            if self.on_retry is not None:
+                                self.on_retry(p, losses[p["key"]] + 1)
                     elif exc is not None:
                         yield p, exc
                     else:
@@ -951,14 +957,14 @@ def heatmap_axes(plan: SweepPlan) -> tuple[Axis, ...]:
     return tuple(a for a in plan.axes if a.swept)[:2]
 
 
-def heatmap_figure(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]], title: str = ""):
-    """Success rate over the first two swept axes, mean over seeds (and over any further axes).
+def heatmap_grid(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]]):
+    """``(x_axis, y_axis or None, mean, count)``: success rate over the first two swept axes.
 
-    Returns a matplotlib Figure, or None when nothing is swept.  Cells with no
-    finished task are left blank.
+    ``mean[y, x]`` is the mean over seeds (and over any further axes) of the
+    finished tasks' success rates, NaN where none finished; ``count[y, x]``
+    how many tasks it averages.  None when nothing is swept.
     """
     import numpy as np
-    from matplotlib.figure import Figure
 
     shown = heatmap_axes(plan)
     if not shown:
@@ -968,7 +974,7 @@ def heatmap_figure(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]], ti
     idx = {a.name: i for i, a in enumerate(plan.axes)}
     ny = len(y_axis.labels) if y_axis else 1
     sums = np.zeros((ny, len(x_axis.labels)))
-    counts = np.zeros_like(sums)
+    counts = np.zeros((ny, len(x_axis.labels)), dtype=int)
     for t in plan.tasks:
         r = records.get(t.key)
         if r is None or r.get("success_rate") is None:
@@ -977,8 +983,25 @@ def heatmap_figure(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]], ti
         yi = y_axis.labels.index(t.labels[idx[y_axis.name]]) if y_axis else 0
         sums[yi, xi] += r["success_rate"]
         counts[yi, xi] += 1
-    with np.errstate(invalid="ignore"):
-        grid = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+    mean = np.full(sums.shape, np.nan)
+    np.divide(sums, counts, out=mean, where=counts > 0)
+    return x_axis, y_axis, mean, counts
+
+
+def heatmap_figure(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]], title: str = ""):
+    """The heat map of :func:`heatmap_grid` as a matplotlib Figure (None when nothing is swept).
+
+    Each cell shows the mean and, in brackets, how many tasks it averages;
+    cells with no finished task are left blank.
+    """
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    hm = heatmap_grid(plan, records)
+    if hm is None:
+        return None
+    x_axis, y_axis, grid, counts = hm
+    ny = grid.shape[0]
     fig = Figure(figsize=(1.2 + 1.0 * len(x_axis.labels), 1.3 + 0.7 * ny))
     ax = fig.add_subplot(1, 1, 1)
     im = ax.imshow(np.ma.masked_invalid(grid), cmap="viridis", vmin=0.0, vmax=1.0, aspect="auto", origin="lower")
@@ -993,9 +1016,9 @@ def heatmap_figure(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]], ti
         for xi in range(len(x_axis.labels)):
             if counts[yi, xi]:
                 v = grid[yi, xi]
-                ax.text(xi, yi, f"{v:.2f}\n({int(counts[yi, xi])})", ha="center", va="center", fontsize=8,
+                ax.text(xi, yi, f"{v:.2f}\n({counts[yi, xi]})", ha="center", va="center", fontsize=8,
                         color="black" if v > 0.6 else "white")
-    others = [a.name for a in plan.axes if a not in shown and a.swept]
+    others = [a.name for a in plan.axes if a.swept and a not in (x_axis, y_axis)]
     over = "seeds" + (" and " + ", ".join(others) if others else "")
     ax.set_title(title or f"success rate, mean over {over} (n per cell)", fontsize=9)
     fig.colorbar(im, ax=ax, label="success rate")

@@ -109,8 +109,12 @@ def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_r
         raise InputError("--address is for --backend ray", file="--address")
     plan = plan_sweep(spec, grid, range(seeds), runs, trials)
     out = Path(out_dir or Path("runs") / f"sweep_{Path(spec_path).stem}")
+    def on_retry(payload: dict, attempt: int) -> None:
+        click.echo(f"a worker died; running task {payload['key']} again (attempt {attempt} of {max_retries + 1})",
+                   err=True)
+
     engine = (RayBackend(address, workers, max_retries) if backend == "ray"
-              else LocalBackend(workers, max_retries))
+              else LocalBackend(workers, max_retries, on_retry=on_retry))
     if backend == "ray":
         RayBackend._import()  # a clear error before anything runs
 
