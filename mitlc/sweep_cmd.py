@@ -11,28 +11,16 @@ and a summary table.  Running the same command again skips finished tasks.
 
 from __future__ import annotations
 
-import functools
 import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import click
 
+from mitlc.cliutil import atomic_write, handle_errors
 from mitlc.errors import InputError
 
 __all__ = ["sweep"]
-
-
-def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """:func:`mitlc.cli.handle_errors`, looked up at call time (``mitlc.cli`` imports this module)."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from mitlc.cli import handle_errors as cli_handle_errors
-
-        return cli_handle_errors(fn)(*args, **kwargs)
-
-    return wrapper
 
 
 def _list(spec) -> str:
@@ -97,7 +85,7 @@ def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_r
 
     from mitlc.parse import load_spec
     from mitlc.plots import png_bytes
-    from mitlc.sweep import LocalBackend, RayBackend, atomic_write, format_table, heatmap_figure, plan_sweep, run_sweep, summarize
+    from mitlc.sweep import LocalBackend, RayBackend, format_table, heatmap_figure, plan_sweep, run_sweep, summarize
 
     spec = load_spec(spec_path)
     for w in spec.warnings:
