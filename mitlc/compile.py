@@ -272,6 +272,7 @@ class _Sub:
     arcs: list[tuple[int, int | tuple[int, ...], Guard]]  # local src, local dst(s), guard
     initial: int
     formula: str = ""
+    counters: tuple[int, ...] = ()  # local indices of counting places (outside the one-token set)
 
 
 def _negate_state(f: A.Formula) -> A.Formula:
@@ -647,7 +648,7 @@ class _Builder:
                          + tuple(GuardTerm(clock=c) for c in (_complement_clock(clock) if clock else [])))
             sub = _Sub(f"violations {label}", "violation", "violation",
                        [(ok, f"ok,{label}"), (bad_place, f"bad,{label}"), (count, f"count,{label}")],
-                       [(0, (1, 2), guard), (1, 0, back)], 0, text)
+                       [(0, (1, 2), guard), (1, 0, back)], 0, text, counters=(2,))
             self.penalties.append(count)
         else:
             viol = self._unique(f"p_violated_{label}")
@@ -685,15 +686,17 @@ class _Builder:
         for s_idx, sub in enumerate(subs):
             base = len(places)
             for k, (name, label) in enumerate(sub.places):
-                places.append(Place(name, sub.kind, s_idx, label))
+                places.append(Place(name, "counter" if k in sub.counters else sub.kind, s_idx, label))
                 m0.append(1 if k == sub.initial else 0)
             t_base = len(transitions)
             for src, dst, guard in sub.arcs:
                 outs = tuple(sub.places[d][0] for d in (dst if isinstance(dst, tuple) else (dst,)))
                 transitions.append((f"t{len(transitions) + 1}", guard, sub.places[src][0], outs, s_idx))
+            own = [base + k for k in range(len(sub.places))]
             subnets.append(
-                SubNet(sub.name, sub.kind, sub.role, tuple(range(base, len(places))),
-                       tuple(range(t_base, len(transitions))), sub.formula)
+                SubNet(sub.name, sub.kind, sub.role, tuple(i for k, i in enumerate(own) if k not in sub.counters),
+                       tuple(range(t_base, len(transitions))), sub.formula,
+                       tuple(i for k, i in enumerate(own) if k in sub.counters))
             )
         index = {p.name: i for i, p in enumerate(places)}
         d_minus = np.zeros((len(transitions), len(places)), dtype=np.int64)

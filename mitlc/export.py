@@ -74,6 +74,7 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
                 "role": s.role,
                 "places": [net.places[i].name for i in s.places],
                 "transitions": [net.transitions[i].name for i in s.transitions],
+                "counters": [net.places[i].name for i in s.counters],
                 "formula": s.formula,
             }
             for s in net.subnets

@@ -392,18 +392,14 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 
 def _token_bounds(rs: RewardSystem) -> np.ndarray:
-    """Most tokens each place can hold: 1, or inf for a place that a transition
-    with more outputs than inputs feeds (the counters of ``violations = counted``).
+    """Most tokens each place can hold: 1, or inf for a counting place (``violations = counted``).
 
     >>> from mitlc.parse import parse_spec
     >>> from mitlc.compile import CompileOptions
     >>> spec = parse_spec("plant pendulum\\nhorizon 3\\nprop a = q < 1\\nformula G a")
     >>> _token_bounds(compile_spec(spec, CompileOptions(violations="counted")))
-    array([ 1.,  1.,  1., inf, inf])
+    array([ 1.,  1.,  1.,  1., inf])
     """
-    net = rs.net
-    bounds = np.ones(len(net.places))
-    for t in net.transitions:
-        if len(t.outputs) > len(t.inputs):
-            bounds[[net.place_index(p) for p in t.outputs]] = np.inf
+    bounds = np.ones(len(rs.net.places))
+    bounds[list(rs.net.counters)] = np.inf
     return bounds

@@ -27,7 +27,11 @@ __all__ = ["Place", "GuardTerm", "Guard", "Transition", "SubNet", "Net", "eval_s
 
 @dataclass(frozen=True, slots=True)
 class Place:
-    """A place: its name, ``kind`` ("state" or "timing") and the sub-net it belongs to."""
+    """A place: its name, ``kind`` and the sub-net it belongs to.
+
+    ``kind`` is ``state``, ``timing``, ``violation``, or ``counter`` (a place
+    whose tokens count violations and are not part of the one-token set).
+    """
 
     name: str
     kind: str
@@ -150,7 +154,9 @@ class SubNet:
     """One sub-net: its places and transitions (indices into the net) and its role.
 
     ``role`` is one of ``region`` (state), ``timeline`` (the trial clock),
-    ``eventually``, ``until``, ``recurrence`` (timing).
+    ``eventually``, ``until``, ``recurrence`` (timing), ``violation``.
+    ``places`` hold exactly one token between them; ``counters`` (only in
+    ``counted`` violation nets) are places whose token count grows.
     """
 
     name: str
@@ -159,6 +165,7 @@ class SubNet:
     places: tuple[int, ...]
     transitions: tuple[int, ...]
     formula: str = ""
+    counters: tuple[int, ...] = ()
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -192,6 +199,11 @@ class Net:
         d = self.D_plus - self.D_minus
         d.setflags(write=False)
         return d
+
+    @property
+    def counters(self) -> tuple[int, ...]:
+        """Indices of the counting places (``counted`` violation nets)."""
+        return tuple(i for s in self.subnets for i in s.counters)
 
     @property
     def place_names(self) -> tuple[str, ...]:

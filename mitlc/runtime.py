@@ -204,6 +204,9 @@ class NetRuntime:
                 if p not in self._region_of and terms:
                     self._region_of[p] = terms[0]
 
+        # counting places (violations = counted) are outside the one-token codes:
+        # their increments are tabulated per (code, next code) pair
+        self.counters = np.array(net.counters, dtype=np.intp)
         self.tables = self._build_tables()
 
     # ------------------------------------------------------------ truth
@@ -337,8 +340,12 @@ class NetRuntime:
         if self.tables is None:
             return self.step_direct(M, x_next, tau_next)
         M = self._check_marking(M)
-        code = self.step_code(self.encode(M), np.asarray(x_next, dtype=float), tau_next)
-        return self.decode(code)
+        code = self.encode(M)
+        code_next = self.step_code(code, np.asarray(x_next, dtype=float), tau_next)
+        M_next = self.decode(code_next)
+        if self.counters.size:
+            M_next[:, self.counters] = M[:, self.counters] + self.tables.counter_inc[code, code_next]
+        return M_next
 
     def reward(self, M_prev: np.ndarray, M_next: np.ndarray) -> np.ndarray:
         """``r(M_k, M_k+1)`` for every run, ``(R,)`` floats."""
@@ -379,23 +386,44 @@ class NetRuntime:
             clock_truth = [bool((ck >> i) & 1) for i in range(n_clocks)]
             nxt = self._fire(M, self._guards(truth, clock_truth, M.shape[0]))
             next_code[ck] = self.encode(nxt).reshape(n_codes, n_atom_codes)
-        prev = np.repeat(markings, n_codes, axis=0)
-        now = np.tile(markings, (n_codes, 1))
-        reward = np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
         marked = np.stack(
             [self.subnet_places[s][(codes // self._strides[s]) % self._sizes[s]] for s in range(self.n_subnets)], axis=1
         ) if self.n_subnets else np.zeros((n_codes, 0), dtype=np.intp)
-        for a in (next_code, reward, marked):
+        # a counter grows when a transition feeding it fires, i.e. when its sub-net's
+        # token moves from the transition's input to its one-token output
+        counter_inc = np.zeros((n_codes, n_codes, len(self.counters)), dtype=np.int64)
+        counter_col = {int(p): j for j, p in enumerate(self.counters)}
+        for t, tr in enumerate(self.net.transitions):
+            fed = [counter_col[self.net.place_index(o)] for o in tr.outputs if self.net.place_index(o) in counter_col]
+            if not fed:
+                continue
+            s = self._t_subnet[t]
+            dst = next(self.net.place_index(o) for o in tr.outputs if self.net.place_index(o) not in counter_col)
+            moved = (marked[:, s] == self._src[t])[:, None] & (marked[:, s] == dst)[None, :]
+            for j in fed:
+                counter_inc[:, :, j] += moved
+        prev = np.repeat(markings, n_codes, axis=0)
+        now = np.tile(markings, (n_codes, 1))
+        if self.counters.size:
+            now[:, self.counters] = counter_inc.reshape(n_codes * n_codes, -1)
+        reward = np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
+        if self.counters.size:  # the table assumes the reward sees counters only through p - ~p
+            prev[:, self.counters] += 7
+            now[:, self.counters] += 7
+            if not np.array_equal(np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes), reward):
+                return None
+        for a in (next_code, reward, marked, counter_inc):
             a.setflags(write=False)
-        return _Tables(next_code, reward, marked)
+        return _Tables(next_code, reward, marked, counter_inc)
 
 
 class _Tables:
     """The firing rule and the reward tabulated over marking, atom and clock codes."""
 
-    __slots__ = ("next_code", "reward", "marked")
+    __slots__ = ("next_code", "reward", "marked", "counter_inc")
 
-    def __init__(self, next_code: np.ndarray, reward: np.ndarray, marked: np.ndarray) -> None:
+    def __init__(self, next_code: np.ndarray, reward: np.ndarray, marked: np.ndarray, counter_inc: np.ndarray) -> None:
         self.next_code = next_code  # (clock codes, marking codes, atom codes) -> marking code
         self.reward = reward  # (marking codes, marking codes) -> r(M_k, M_k+1)
         self.marked = marked  # (marking codes, sub-nets) -> marked place index
+        self.counter_inc = counter_inc  # (marking codes, marking codes, counters) -> tokens added

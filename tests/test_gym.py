@@ -153,8 +153,8 @@ def test_counting_nets_observe_counts_in_a_box() -> None:
     spec = load_spec(SPECS / "p2_avoid.mitl")
     rs = compile_spec(spec, CompileOptions(violations="counted"))
     d = MitlRewardWrapper(gym.make("Pendulum-v1"), rs, pendulum_v1_state)
-    counters = [i for i, n in enumerate(d.place_names) if n.startswith(("p_bad_", "p_count_"))]
-    assert [d.place_names[i] for i in counters] == ["p_bad_G_not_psi", "p_count_G_not_psi"]
+    counters = [i for i, n in enumerate(d.place_names) if n.startswith("p_count_")]
+    assert [d.place_names[i] for i in counters] == ["p_count_G_not_psi"]
     marking = d.observation_space["marking"]
     assert isinstance(marking, gym.spaces.Box) and marking.dtype == np.float32
     assert np.isinf(marking.high[counters]).all() and (np.delete(marking.high, counters) == 1).all()

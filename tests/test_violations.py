@@ -195,3 +195,23 @@ def test_cutting_through_psi_pays_only_without_the_option() -> None:
     assert plain[0] > plain[1]
     aware = _returns(compile_spec(spec, CompileOptions(violations="permanent")), x)
     assert aware[0] < aware[1]
+
+
+def test_runtime_counts_violations_on_both_paths() -> None:
+    rs = compile_spec(parse_spec(P2_UNIT), CompileOptions(violations="counted"))
+    rt = NetRuntime(rs)
+    assert rt.tables is not None
+    count = rs.net.place_index("p_count_G_not_psi")
+    qs = [2.77, 1.0, 2.5, 1.0, 2.5, 0.1]  # none, psi, none, psi, none, kappa
+    x = np.array([[[q, 0.0] for q in qs]])
+    m = rt.reset(x[:, 0])
+    rewards = []
+    for k in range(len(qs) - 1):
+        m_next = rt.step(m, x[:, k + 1], (k + 1) * DT)
+        np.testing.assert_array_equal(m_next, rt.step_direct(m, x[:, k + 1], (k + 1) * DT))
+        rewards.append(float(rt.reward(m, m_next)[0]))
+        assert rt.reward_code(rt.encode(m), rt.encode(m_next))[0] == rewards[-1]
+        m = m_next
+    assert m[0, count] == 2
+    # each entry into psi: base min(1*(0-1), 2*(0-1)) = -2 and the penalty 401
+    assert rewards == [-403.0, -1.0, -403.0, -1.0, 1.0]
