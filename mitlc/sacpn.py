@@ -46,8 +46,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping
@@ -56,6 +54,7 @@ import numpy as np
 
 from mitlc.compile import RewardSystem
 from mitlc.errors import InputError, TrainingError
+from mitlc.fileio import save_npz
 from mitlc.plants import Plant
 from mitlc.runtime import NetRuntime
 
@@ -732,16 +731,7 @@ class Sacpn:
 
     def save(self, path: str | Path) -> None:
         """Write the learner's state to ``path`` (.npz) atomically."""
-        path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent or Path("."))
-        os.close(fd)
-        try:
-            np.savez(tmp, **self.state_dict())
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        save_npz(path, self.state_dict())
 
     def load(self, path: str | Path) -> None:
         try:

@@ -34,7 +34,7 @@ __all__ = ["train", "simulate", "find_default_spec", "SPECS_DIRS"]
 PARAMS = "params.npz"
 SPECS_DIRS = (
     Path(__file__).resolve().parent.parent / "specs",  # a source checkout
-    Path(__file__).resolve().parent / "specs_data",  # a copy shipped inside the package
+    Path(__file__).resolve().parent / "specs",  # the copy shipped inside the wheel (mitlc.specs)
 )
 """Where a plant's ``default_spec`` (a path such as ``pendulum/p2_avoid.mitl``) is looked up."""
 
