@@ -363,6 +363,22 @@ class NetRuntime:
             return self.encode(self.step_direct(self.decode(code), x_next, tau_next))
         return tables.next_code[self.clock_code(tau_next), code, self.atom_code(x_next)]
 
+    def trace_markings(self, codes: np.ndarray) -> np.ndarray:
+        """Full markings ``(R, N+1, P)`` of code sequences ``(R, N+1)``, counters included.
+
+        Codes leave out the counting places; their tokens are the running sum of
+        the increments of each step.
+        """
+        codes = np.asarray(codes, dtype=np.int64)
+        R, K = codes.shape
+        M = self.decode(codes.reshape(-1)).reshape(R, K, self.n_places)
+        if self.counters.size and K > 1:
+            if self.tables is None:  # pragma: no cover - counted nets small enough to tabulate
+                raise ValueError("counter tokens need the tables; use step() markings instead")
+            inc = self.tables.counter_inc[codes[:, :-1], codes[:, 1:]]  # (R, K-1, C)
+            M[:, 1:, self.counters] = np.cumsum(inc, axis=1)
+        return M
+
     def reward_code(self, code_prev: np.ndarray, code_next: np.ndarray) -> np.ndarray:
         """:meth:`reward` on marking codes."""
         if self.tables is None:

@@ -702,6 +702,7 @@ class Sacpn:
             "spec_source": self.spec.source or "",
             "spec_path": self.spec.path or "",
             "conjunction": self.rs.options.conjunction,
+            "violations": self.rs.options.violations,
         }
         return {
             "xi": self.xi,

@@ -107,6 +107,7 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
         "formula": str(spec.formula),
         "check": str(spec.monitor_formula),
         "conjunction": agent.rs.options.conjunction,
+        "violations": agent.rs.options.violations,
         "runs": agent.runs,
         "trials": agent.trial,
         "seed": agent.seed,
@@ -150,6 +151,8 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
               help="Continue the training saved in this directory.")
 @click.option("--conjunction", type=click.Choice(["literal", "active"]), default=None,
               help="How '&' combines gated terms (overrides the spec's option).")
+@click.option("--violations", type=click.Choice(["off", "permanent", "counted"]), default=None,
+              help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).")
 @click.option("--sigma", type=float, default=None, help="Exploration std of the input (default 0.3 u_max).")
 @click.option("--mask", type=click.Choice(["current", "next"]), default=None,
               help="Update masking: current = M_k (gradient, default), next = M_k+1 (Algorithm 1 as printed).")
@@ -158,8 +161,8 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @handle_errors
-def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjunction, sigma, mask, saturation,
-          no_plots, quiet) -> None:
+def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjunction, violations, sigma, mask,
+          saturation, no_plots, quiet) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
     from tqdm import tqdm
 
@@ -175,6 +178,7 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
         spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
         runs, seed = int(meta["runs"]), int(meta["seed"])
         conjunction = conjunction or meta.get("conjunction")
+        violations = violations or meta.get("violations")
         base = SacpnSettings.from_dict(meta["settings"])
         out = Path(out_dir or resume_dir)
     else:
@@ -190,7 +194,7 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
     for w in spec.warnings:
         click.echo(w, err=True)
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation)
-    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
     agent = Sacpn(rs, settings, runs=runs, seed=seed)
     wall_before = 0.0
     if meta is not None:
@@ -255,7 +259,8 @@ def simulate(policy_dir, spec_path, rollouts, seed, plot_path) -> None:
                          file=str(policy_dir))
     meta = read_meta(ckpt)
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
-    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=meta.get("conjunction")))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=meta.get("conjunction"),
+                                                     violations=meta.get("violations")))
     agent = Sacpn(rs, SacpnSettings.from_dict(meta["settings"]), runs=int(meta["runs"]), seed=int(meta["seed"]))
     agent.load(ckpt)
     n = rollouts or agent.runs
@@ -266,11 +271,20 @@ def simulate(policy_dir, spec_path, rollouts, seed, plot_path) -> None:
     ro = agent.rollout(x0)
     res = _judge(spec, ro)
     names = agent.plant.state_names
+    net = agent.rs.net
+    # the net's own record of violations (violations = permanent | counted): final tokens
+    watched = [i for i, p in enumerate(net.places)
+               if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))]
+    final = agent.runtime.trace_markings(ro.codes)[:, -1] if watched else None
     for i in range(n):
         start = ", ".join(f"{v}={x0[i, j]:.3f}" for j, v in enumerate(names))
         verdict = "satisfied" if res.satisfied[i] else f"VIOLATED at t={res.violation_time[i]:.2f} s ({res.failing[i]})"
+        record = ""
+        if final is not None:
+            marked = [f"{net.places[j].name}={int(final[i, j])}" for j in watched if final[i, j]]
+            record = f"; net records {', '.join(marked) if marked else 'no violation'}"
         click.echo(f"rollout {i:3d} (run {i % agent.runs:3d}, {start}): {verdict}; "
-                   f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}")
+                   f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}")
     click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
     atomic_write(plot_path or Path(policy_dir) / "simulate.png",
                  _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"))
