@@ -510,13 +510,14 @@ def plan_sweep(spec: Spec, grid: Sequence[str], seeds: Sequence[int], runs: int,
 
 
 def run_task(payload: Mapping[str, Any]) -> dict:
-    """Train and judge one configuration and seed; a pure function of ``payload`` (bar ``wall_s``, ``host``).
+    """Train and judge one configuration and seed; a pure function of ``payload`` (bar the times and ``host``).
 
     Returns the result record: the resolved configuration, ``seed``,
     ``success_rate`` (fraction of runs whose final greedy rollout satisfies the
     spec by :mod:`mitlc.monitor`), ``final_return`` (mean over runs of the last
     10 trials' returns), ``greedy_return`` (mean return of those rollouts),
-    ``wall_s`` and ``host``.  Training that diverges is a result too: the
+    ``wall_s`` and ``cpu_s`` (the task's wall and CPU seconds: a wall time well
+    above the CPU time means the worker waited for a core) and ``host``.  Training that diverges is a result too: the
     metrics are None and ``error`` says why.
     """
     import numpy as np
@@ -526,7 +527,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
     from mitlc.parse import parse_spec
     from mitlc.sacpn import Sacpn, SacpnSettings
 
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     spec = with_weights(parse_spec(payload["spec_text"], payload.get("spec_path")), payload["weights"])
     rs = compile_spec(spec, CompileOptions(**payload["options"]))
     agent = Sacpn(rs, SacpnSettings.from_dict(payload["settings"]), runs=int(payload["runs"]),
@@ -553,6 +554,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
         record["final_return"] = float(agent.returns[:, -FINAL_TRIALS:].mean())
         record["greedy_return"] = float(ro.returns.mean())
     record["wall_s"] = round(time.perf_counter() - start, 3)
+    record["cpu_s"] = round(time.process_time() - cpu_start, 3)
     record["host"] = socket.gethostname()
     return record
 
@@ -583,7 +585,7 @@ def atomic_write(path: str | Path, data: str | bytes) -> None:
         raise
 
 
-CSV_METRICS = ("success_rate", "final_return", "greedy_return", "wall_s", "error", "host")
+CSV_METRICS = ("success_rate", "final_return", "greedy_return", "wall_s", "cpu_s", "error", "host")
 
 
 class ResultStore:

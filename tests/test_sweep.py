@@ -431,7 +431,7 @@ def test_cli_sweep_writes_results_summary_and_heat_map_and_resumes(short_spec, t
     rows = csv_rows(out / "results.csv")
     assert len(rows) == 8
     assert list(rows[0]) == ["task", "seed", "sigma", "weight.psi", "success_rate", "final_return",
-                             "greedy_return", "wall_s", "error", "host"]
+                             "greedy_return", "wall_s", "cpu_s", "error", "host"]
     data = json.loads((out / "results.json").read_text())
     assert data["header"]["runs"] == 2 and data["header"]["trials"] == 4
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
