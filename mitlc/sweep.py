@@ -775,7 +775,21 @@ class LocalBackend:
                     pool = None
         finally:
             if pool is not None:
+                if running:  # stopped early (an interrupt): do not let the workers finish their tasks
+                    _terminate_workers(pool)
                 pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _terminate_workers(pool: Any) -> None:
+    """End a process pool's workers now (``terminate_workers`` from Python 3.14; before, its process table)."""
+    if hasattr(pool, "terminate_workers"):
+        pool.terminate_workers()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            proc.terminate()
+        except (OSError, ValueError):  # already gone
+            pass
 
 
 class RayBackend:

@@ -416,6 +416,29 @@ def test_killed_worker_task_is_retried(tmp_path):
     assert all(r["success_rate"] != "" for r in rows)
 
 
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc to find the worker process")
+def test_interrupt_stops_the_workers_at_once_and_exits_130(tmp_path):
+    out = tmp_path / "o"
+    proc = _sweep_process(P2, out, "--runs", "5", "--trials", "2000")  # tasks of several seconds
+    try:
+        _wait(lambda: _spawned_workers(proc.pid) or proc.poll() is not None, what="the worker")
+        workers = _spawned_workers(proc.pid)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)  # to the sweep alone, not to its worker
+        start = time.monotonic()
+        stdout, stderr = proc.communicate(timeout=60)
+        waited = time.monotonic() - start
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130
+    assert "interrupted; finished tasks are in" in stderr and "Traceback" not in stderr
+    assert waited < 3.0  # the running task was not waited for
+    assert workers and not any(Path(f"/proc/{w}").exists() for w in workers)
+    assert _n_results(out) == 0
+
+
 # ---------------------------------------------------------------- the command
 
 
