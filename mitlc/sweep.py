@@ -516,7 +516,8 @@ def run_task(payload: Mapping[str, Any]) -> dict:
     ``success_rate`` (fraction of runs whose final greedy rollout satisfies the
     spec by :mod:`mitlc.monitor`), ``final_return`` (mean over runs of the last
     10 trials' returns), ``greedy_return`` (mean return of those rollouts),
-    ``wall_s`` and ``cpu_s`` (the task's wall and CPU seconds: a wall time well
+    ``failing`` (for the runs that fail, how many fail by each subformula,
+    the monitor's blame), ``wall_s`` and ``cpu_s`` (the task's wall and CPU seconds: a wall time well
     above the CPU time means the worker waited for a core) and ``host``.  Training that diverges is a result too: the
     metrics are None and ``error`` says why.
     """
@@ -541,6 +542,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
         "success_rate": None,
         "final_return": None,
         "greedy_return": None,
+        "failing": {},
         "error": None,
     }
     try:
@@ -553,6 +555,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
         record["success_rate"] = float(np.mean(verdict.satisfied))
         record["final_return"] = float(agent.returns[:, -FINAL_TRIALS:].mean())
         record["greedy_return"] = float(ro.returns.mean())
+        record["failing"] = dict(sorted(Counter(f for f in verdict.failing if f is not None).items()))
     record["wall_s"] = round(time.perf_counter() - start, 3)
     record["cpu_s"] = round(time.process_time() - cpu_start, 3)
     record["host"] = socket.gethostname()
@@ -585,7 +588,18 @@ def atomic_write(path: str | Path, data: str | bytes) -> None:
         raise
 
 
-CSV_METRICS = ("success_rate", "final_return", "greedy_return", "wall_s", "cpu_s", "error", "host")
+CSV_METRICS = ("success_rate", "final_return", "greedy_return", "failing", "wall_s", "cpu_s", "error", "host")
+
+
+def _csv_cell(v: Any) -> Any:
+    """A metric as a CSV cell: floats in full (``repr``), a blame count as ``G !psi: 3; F G kappa: 1``."""
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, dict):
+        return "; ".join(f"{k}: {n}" for k, n in v.items())
+    return v
 
 
 class ResultStore:
@@ -680,8 +694,7 @@ class ResultStore:
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(["task", "seed", *(a.name for a in self.axes), *CSV_METRICS])
         for r in self.records.values():
-            metrics = [("" if r.get(m) is None else repr(r[m]) if isinstance(r[m], float) else r[m])
-                       for m in CSV_METRICS]
+            metrics = [_csv_cell(r.get(m)) for m in CSV_METRICS]
             w.writerow([r["task"], r["seed"], *(a.lookup(r) for a in self.axes), *metrics])
         return buf.getvalue()
 
@@ -916,7 +929,8 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, backend: LocalBackend | RayB
 
 
 def summarize(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]]) -> list[dict]:
-    """One row per configuration (in grid order): the axis values and means over the finished seeds."""
+    """One row per configuration (in grid order): the axis values, means over the finished seeds, and
+    ``failing``: how many runs (summed over seeds) the monitor blames on each subformula."""
     import numpy as np
 
     groups: dict[tuple[str, ...], list[Mapping[str, Any]]] = {}
@@ -939,6 +953,7 @@ def summarize(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]]) -> list
             "success_min": min((r["success_rate"] for r in ok), default=None),
             "success_max": max((r["success_rate"] for r in ok), default=None),
             "final_return": mean("final_return"),
+            "failing": dict(sum((Counter(r.get("failing") or {}) for r in ok), Counter())),
             "wall_s": float(np.mean([r["wall_s"] for r in recs])) if recs else None,
         })
     return rows
@@ -950,14 +965,16 @@ def format_table(plan: SweepPlan, rows: Sequence[Mapping[str, Any]], markdown: b
     def num(v: float | None, fmt: str) -> str:
         return "-" if v is None else format(v, fmt)
 
-    head = [a.name for a in plan.axes] + ["seeds", "success (mean)", "min-max", "final return", "wall s"]
+    head = [a.name for a in plan.axes] + ["seeds", "success (mean)", "min-max", "final return", "wall s",
+                                          "failing runs, by blame"]
     body = []
     for r in rows:
         seeds = f"{r['seeds']}/{len(plan.seeds)}" + (f" ({r['errors']} diverged)" if r["errors"] else "")
         body.append([str(r[a.name]) for a in plan.axes] + [
             seeds, num(r["success_rate"], ".2f"),
             "-" if r["success_min"] is None else f"{r['success_min']:.2f}-{r['success_max']:.2f}",
-            num(r["final_return"], ".1f"), num(r["wall_s"], ".1f")])
+            num(r["final_return"], ".1f"), num(r["wall_s"], ".1f"),
+            ", ".join(f"{k}: {n}" for k, n in sorted(r["failing"].items(), key=lambda kv: -kv[1])) or "-"])
     if markdown:
         lines = ["| " + " | ".join(head) + " |", "|" + "|".join(" --- " for _ in head) + "|"]
         lines += ["| " + " | ".join(row) + " |" for row in body]

@@ -27,6 +27,7 @@ from mitlc.sweep import (
     LocalBackend,
     RayBackend,
     ResultStore,
+    format_table,
     format_value,
     heatmap_figure,
     heatmap_grid,
@@ -229,7 +230,10 @@ def test_run_task_is_the_trainer_and_the_monitor(short_spec):
     ro = agent.rollout(agent.evaluation_states())
     assert record["final_return"] == agent.returns[:, -10:].mean()
     assert record["greedy_return"] == ro.returns.mean()
-    assert record["success_rate"] == monitor(spec, ro.states, ro.dt).satisfied.mean()
+    verdict = monitor(spec, ro.states, ro.dt)
+    assert record["success_rate"] == verdict.satisfied.mean()
+    assert sum(record["failing"].values()) == 3 - verdict.satisfied.sum()
+    assert record["failing"] == {f: verdict.failing.count(f) for f in set(verdict.failing) - {None}}
     assert record["error"] is None and record["seed"] == 5 and record["task"] == plan.tasks[0].key
     assert record["final_return"] < 0  # 6 trials do not learn to avoid the penalty
     again = run_task(plan.tasks[0].payload)
@@ -271,7 +275,8 @@ def test_summary_and_heat_map_average_over_seeds(short_spec):
                       [0, 1], 2, 3)
     rates = {}
     for i, t in enumerate(plan.tasks):
-        rates[t.key] = {"success_rate": (i % 5) / 4, "final_return": float(i), "wall_s": 1.0, "error": None}
+        rates[t.key] = {"success_rate": (i % 5) / 4, "final_return": float(i), "wall_s": 1.0, "error": None,
+                        "failing": {"!psi": i % 3, "F G kappa": 1}}
     missing = plan.tasks[-1]
     del rates[missing.key]
     rows = summarize(plan, rates)
@@ -280,6 +285,10 @@ def test_summary_and_heat_map_average_over_seeds(short_spec):
     assert (first["sigma"], first["weight.psi"], first["mask"], first["seeds"]) == ("1", "1", "current", 2)
     assert first["success_rate"] == pytest.approx((0 / 4 + 2 / 4) / 2) and first["final_return"] == 6.0
     assert rows[-1]["seeds"] == 1
+    assert first["failing"] == {"F G kappa": 2}  # tasks 0 and 12: i % 3 == 0, no !psi
+    assert rows[1]["failing"] == {"!psi": 1 + 1, "F G kappa": 2}  # tasks 1 and 13
+    text = format_table(plan, rows)
+    assert text.splitlines()[1].split()[:8] == ["1", "1", "current", "2/2", "0.25", "0.00-0.50", "6.0", "1.0"]
     x, y, mean, count = heatmap_grid(plan, rates)
     assert (x.name, y.name, mean.shape) == ("sigma", "weight.psi", (3, 2))
     # cell sigma=1, psi=1 averages mask current and next over both seeds: tasks 0, 1, 12, 13
@@ -454,7 +463,7 @@ def test_cli_sweep_writes_results_summary_and_heat_map_and_resumes(short_spec, t
     rows = csv_rows(out / "results.csv")
     assert len(rows) == 8
     assert list(rows[0]) == ["task", "seed", "sigma", "weight.psi", "success_rate", "final_return",
-                             "greedy_return", "wall_s", "cpu_s", "error", "host"]
+                             "greedy_return", "failing", "wall_s", "cpu_s", "error", "host"]
     data = json.loads((out / "results.json").read_text())
     assert data["header"]["runs"] == 2 and data["header"]["trials"] == 4
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
