@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.cli import atomic_write  # noqa: E402
+from mitlc.fileio import atomic_write  # noqa: E402
 from mitlc.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.monitor import monitor  # noqa: E402
 from mitlc.parse import load_spec  # noqa: E402
@@ -250,7 +250,12 @@ def write_doc(rows, comparisons, total: float) -> None:
         "why both parts are the default.",
     ]
     lines += ["", "Per-seed numbers in machine-readable form: [figures/results.json](figures/results.json).", ""]
-    atomic_write(ROOT / "docs" / "results.md", "\n".join(lines))
+    page = ROOT / "docs" / "results.md"
+    old = page.read_text(encoding="utf-8") if page.is_file() else ""
+    begin, end = "<!-- violations:begin -->", "<!-- violations:end -->"
+    if begin in old and end in old:  # the section docs/make_violation_results.py writes
+        lines += [old[old.index(begin): old.index(end) + len(end)], ""]
+    atomic_write(page, "\n".join(lines))
 
 
 if __name__ == "__main__":
