@@ -9,7 +9,7 @@ worker count gave the same metrics.  ``--backend ray`` measures Ray instead
 (a local Ray with that many CPUs, started before the clock starts; its start-up
 time is printed apart); ``--backend both`` measures both.
 
-    python bench/bench_sweep.py [--runs 30] [--trials 100] [--seeds 2] [--backend local|ray|both]
+    python bench/bench_sweep.py [--runs 30] [--trials 100] [--seeds 2] [--backend local|ray|both] [--repeat 1]
 
 The machine's other load counts: on a shared 2-core machine the 2-worker
 figure is only as good as the second core is free, so the script prints how
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import tempfile
 import time
@@ -71,6 +72,7 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=100)
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--backend", choices=["local", "ray", "both"], default="local")
+    ap.add_argument("--repeat", type=int, default=1, help="measure each worker count this many times (alternating)")
     args = ap.parse_args()
 
     plan = plan_sweep(load_spec(SPEC), GRID, range(args.seeds), args.runs, args.trials)
@@ -82,30 +84,34 @@ def main() -> None:
     backends = ["local", "ray"] if args.backend == "both" else [args.backend]
     reference = None
     for name in backends:
-        rate = {}
-        for workers in (1, 2):
-            if name == "local":
-                wall, cpu, records = measure(plan, LocalBackend(workers=workers))
-                extra = ""
-            else:
-                import ray
+        rate: dict[int, list[float]] = {1: [], 2: []}
+        for _ in range(args.repeat):
+            for workers in (1, 2):
+                if name == "local":
+                    wall, cpu, records = measure(plan, LocalBackend(workers=workers))
+                    extra = ""
+                else:
+                    import ray
 
-                t0 = time.perf_counter()
-                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, logging_level="WARNING")
-                startup = time.perf_counter() - t0
-                try:
-                    wall, cpu, records = measure(plan, RayBackend(workers=workers))
-                finally:
-                    ray.shutdown()
-                extra = f" (Ray start-up {startup:.1f} s, not counted)"
-            if reference is None:
-                reference = records
-            elif records != reference:
-                raise SystemExit(f"{name} with {workers} worker(s) gave other metrics than the first measurement")
-            rate[workers] = n / wall * 60
-            print(f"{name:5s} {workers} worker{'s' if workers > 1 else ' '}: {wall:6.1f} s, "
-                  f"{rate[workers]:6.1f} tasks/min; the tasks got {cpu / wall:.2f} cores of CPU time{extra}")
-        print(f"{name:5s} 2 workers / 1 worker: {rate[2] / rate[1]:.2f}x")
+                    t0 = time.perf_counter()
+                    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                             logging_level="WARNING")
+                    startup = time.perf_counter() - t0
+                    try:
+                        wall, cpu, records = measure(plan, RayBackend(workers=workers))
+                    finally:
+                        ray.shutdown()
+                    extra = f" (Ray start-up {startup:.1f} s, not counted)"
+                if reference is None:
+                    reference = records
+                elif records != reference:
+                    raise SystemExit(f"{name} with {workers} worker(s) gave other metrics than the first measurement")
+                rate[workers].append(n / wall * 60)
+                print(f"{name:5s} {workers} worker{'s' if workers > 1 else ' '}: {wall:6.1f} s, "
+                      f"{rate[workers][-1]:6.1f} tasks/min; the tasks got {cpu / wall:.2f} cores of CPU time{extra}")
+        r1, r2 = statistics.median(rate[1]), statistics.median(rate[2])
+        what = "median " if args.repeat > 1 else ""
+        print(f"{name:5s} {what}tasks/min: 1 worker {r1:.1f}, 2 workers {r2:.1f}; 2 workers / 1 worker: {r2 / r1:.2f}x")
     print("metrics identical across all measurements: yes")
 
 
