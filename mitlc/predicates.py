@@ -42,6 +42,7 @@ __all__ = [
     "CONSTANTS",
     "COMPARISONS",
     "evaluate",
+    "compile_numpy",
     "variables",
     "is_boolean",
     "const_value",
@@ -245,48 +246,81 @@ def is_boolean(p: Pred) -> bool:
     return isinstance(p, (Compare, PAnd, POr, PNot))
 
 
-def evaluate(p: Pred, env: Mapping[str, np.ndarray | float]) -> np.ndarray:
-    """Evaluate ``p`` elementwise over arrays of state values (broadcasting)."""
-    if isinstance(p, Num):
-        return np.asarray(p.value, dtype=float)
+def compile_numpy(p: Pred, var: Callable[[str], Callable[[object], np.ndarray]]) -> Callable[[object], np.ndarray]:
+    """Turn a predicate tree into one closure over a batch of states.
+
+    ``var(name)`` returns how to read a state variable from the closure's
+    argument (a column of an array, an entry of a dict).  Constant subtrees
+    are folded and each node becomes one numpy call.  Floating-point warnings
+    are the caller's business (see :func:`evaluate`).
+
+    >>> f = compile_numpy(Compare((Var("x"), Num(1.0)), ("<",)), lambda name: lambda x: x[:, 0])
+    >>> f(np.array([[0.5], [2.0]]))
+    array([ True, False])
+    """
+    return _compile(p, var, fold=True)
+
+
+def _compile(p: Pred, var: Callable[[str], Callable[[object], np.ndarray]], fold: bool) -> Callable[[object], np.ndarray]:
+    value = p.value if isinstance(p, Num) else const_value(p) if fold else None
+    if value is not None:
+        return lambda x, v=float(value): v
     if isinstance(p, Var):
-        return np.asarray(env[p.name], dtype=float)
+        return var(p.name)
     if isinstance(p, Neg):
-        return -evaluate(p.arg, env)
+        f = _compile(p.arg, var, fold)
+        return lambda x: np.negative(f(x))
     if isinstance(p, BinOp):
-        a, b = evaluate(p.left, env), evaluate(p.right, env)
-        if p.op == "+":
-            return a + b
-        if p.op == "-":
-            return a - b
-        if p.op == "*":
-            return a * b
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return a / b
+        op = {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide}[p.op]
+        fl, fr = _compile(p.left, var, fold), _compile(p.right, var, fold)
+        return lambda x: op(fl(x), fr(x))
     if isinstance(p, Call):
         _, fn = FUNCTIONS[p.fn]
-        with np.errstate(invalid="ignore"):
-            return fn(*(evaluate(a, env) for a in p.args))
+        fs = [_compile(a, var, fold) for a in p.args]
+        if len(fs) == 1:
+            f0 = fs[0]
+            return lambda x: fn(f0(x))
+        return lambda x: fn(*(f(x) for f in fs))
     if isinstance(p, Compare):
-        values = [evaluate(o, env) for o in p.operands]
-        out = np.asarray(True)
-        for op, a, b in zip(p.ops, values, values[1:]):
-            out = out & _CMP[op](a, b)
-        return out
-    if isinstance(p, PAnd):
-        return evaluate(p.left, env) & evaluate(p.right, env)
-    if isinstance(p, POr):
-        return evaluate(p.left, env) | evaluate(p.right, env)
+        fs = [_compile(o, var, fold) for o in p.operands]
+        cmps = [COMPARISONS[op] for op in p.ops]
+        if len(cmps) == 1:
+            c0, a0, b0 = cmps[0], fs[0], fs[1]
+            return lambda x: c0(a0(x), b0(x))
+
+        def chain(x: object) -> np.ndarray:
+            values = [f(x) for f in fs]
+            out = cmps[0](values[0], values[1])
+            for c, a, b in zip(cmps[1:], values[1:], values[2:]):
+                out = out & c(a, b)
+            return out
+
+        return chain
+    if isinstance(p, (PAnd, POr)):
+        op = np.logical_and if isinstance(p, PAnd) else np.logical_or
+        fl, fr = _compile(p.left, var, fold), _compile(p.right, var, fold)
+        return lambda x: op(fl(x), fr(x))
     if isinstance(p, PNot):
-        return ~evaluate(p.arg, env)
+        f = _compile(p.arg, var, fold)
+        return lambda x: np.logical_not(f(x))
     raise TypeError(f"not a predicate node: {p!r}")
+
+
+def evaluate(p: Pred, env: Mapping[str, np.ndarray | float]) -> np.ndarray:
+    """Evaluate ``p`` elementwise over arrays of state values (broadcasting)."""
+    f = compile_numpy(p, lambda name: lambda e: np.asarray(e[name], dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(f(env))
 
 
 def const_value(p: Pred) -> float | None:
     """The value of a variable-free arithmetic expression, else None."""
     if variables(p) or is_boolean(p):
         return None
-    return float(evaluate(p, {}))
+    if isinstance(p, Num):
+        return float(p.value)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return float(_compile(p, lambda name: lambda e: np.nan, fold=False)(None))
 
 
 # ----------------------------------------------------------------- regions

@@ -77,62 +77,8 @@ def _clock_ok(interval: A.Interval, tau: np.ndarray | float) -> np.ndarray | boo
 
 
 def compile_predicate(p: P.Pred, columns: Mapping[str, int]) -> Callable[[np.ndarray], np.ndarray | float]:
-    """Turn a predicate tree into a closure over a state batch ``x`` ``(R, n)``.
-
-    The same arithmetic as :func:`mitlc.predicates.evaluate` (which stays the
-    reference), without the per-node dispatch: constant subtrees are folded and
-    each node becomes one numpy call.  Floating-point warnings are the
-    caller's business (wrap a batch of calls in ``np.errstate``).
-    """
-    value = P.const_value(p)
-    if value is not None and not P.is_boolean(p):
-        return lambda x, v=float(value): v
-    if isinstance(p, P.Var):
-        i = columns[p.name]
-        return lambda x: x[:, i]
-    if isinstance(p, P.Neg):
-        f = compile_predicate(p.arg, columns)
-        return lambda x: np.negative(f(x))
-    if isinstance(p, P.BinOp):
-        op = {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide}[p.op]
-        fl, fr = compile_predicate(p.left, columns), compile_predicate(p.right, columns)
-        return lambda x: op(fl(x), fr(x))
-    if isinstance(p, P.Call):
-        _, fn = P.FUNCTIONS[p.fn]
-        fs = [compile_predicate(a, columns) for a in p.args]
-        if len(fs) == 1:
-            f0 = fs[0]
-            return lambda x: fn(f0(x))
-        return lambda x: fn(*(f(x) for f in fs))
-    if isinstance(p, P.Compare):
-        fs = [compile_predicate(o, columns) for o in p.operands]
-        cmps = [_CMP[op] for op in p.ops]
-        if len(cmps) == 1:
-            c0, a0, b0 = cmps[0], fs[0], fs[1]
-            return lambda x: c0(a0(x), b0(x))
-
-        def chain(x: np.ndarray) -> np.ndarray:
-            values = [f(x) for f in fs]
-            out = cmps[0](values[0], values[1])
-            for c, a, b in zip(cmps[1:], values[1:], values[2:]):
-                out = out & c(a, b)
-            return out
-
-        return chain
-    if isinstance(p, P.PAnd):
-        fl, fr = compile_predicate(p.left, columns), compile_predicate(p.right, columns)
-        return lambda x: fl(x) & fr(x)
-    if isinstance(p, P.POr):
-        fl, fr = compile_predicate(p.left, columns), compile_predicate(p.right, columns)
-        return lambda x: fl(x) | fr(x)
-    if isinstance(p, P.PNot):
-        f = compile_predicate(p.arg, columns)
-        return lambda x: ~f(x)
-    raise TypeError(f"not a predicate node: {p!r}")
-
-
-_CMP = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
-        "==": np.equal, "!=": np.not_equal}
+    """A predicate as one closure over a state batch ``x`` ``(R, n)`` (columns by variable name)."""
+    return P.compile_numpy(p, lambda name: (lambda x, i=columns[name]: x[:, i]))
 
 
 class NetRuntime:
