@@ -87,6 +87,8 @@ __all__ = [
 RESULTS_JSON = "results.json"
 RESULTS_CSV = "results.csv"
 LOCK_FILE = ".sweep.lock"
+WRITE_BUDGET = 0.1
+"""Largest fraction of a sweep's time spent rewriting the result files (see :func:`run_sweep`)."""
 FINAL_TRIALS = 10
 """The final mean return is the mean over runs of the last this many trials (as ``mitlc train`` prints)."""
 
@@ -671,23 +673,36 @@ class ResultStore:
     def __len__(self) -> int:
         return len(self.records)
 
-    def add(self, record: Mapping[str, Any]) -> bool:
-        """Record a finished task and rewrite the files; False (and nothing written) if it was already there."""
+    def add(self, record: Mapping[str, Any], write: bool = True) -> bool:
+        """Record a finished task and (unless ``write`` is False) rewrite the files.
+
+        Returns False, and changes nothing, if the task was already recorded.
+        """
         if record["task"] in self.records:
             return False
         self.records[record["task"]] = dict(record)
-        self.write()
+        self.dirty = True
+        if write:
+            self.write()
         return True
 
+    dirty = False
+    """Records were added since the files were last written."""
+
+    def json_text(self) -> str:
+        """``results.json``: the header and axes, then one compact line per result."""
+        axes = {a.name: {"kind": a.kind, "key": a.key} for a in self.axes}
+        rows = ",\n".join("  " + json.dumps(r, separators=(",", ":")) for r in self.records.values())
+        return (f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n'
+                f' "results": [\n{rows}\n ]}}\n' if rows else
+                f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n "results": []}}\n')
+
     def write(self) -> None:
+        """Rewrite ``results.json``, then ``results.csv``, each atomically."""
         self.dir.mkdir(parents=True, exist_ok=True)
-        data = {
-            "header": self.header,
-            "axes": {a.name: {"kind": a.kind, "key": a.key} for a in self.axes},
-            "results": list(self.records.values()),
-        }
-        atomic_write(self.dir / RESULTS_JSON, json.dumps(data, indent=1) + "\n")
+        atomic_write(self.dir / RESULTS_JSON, self.json_text())
         atomic_write(self.dir / RESULTS_CSV, self.csv_text())
+        self.dirty = False
 
     def csv_text(self) -> str:
         buf = io.StringIO()
@@ -896,8 +911,13 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, backend: LocalBackend | RayB
     """Run every task of ``plan`` not yet recorded in ``out_dir``, recording each result as it arrives.
 
     ``on_start(total, already_done)`` is called once before any task runs,
-    ``on_result(task, record)`` after each new record is on disk.  A task that
-    raises (other than a diverging trainer, which is a result) is reported in
+    ``on_result(task, record)`` after each new record.  The files are
+    rewritten after each new record, except that rewriting never takes more
+    than :data:`WRITE_BUDGET` of the time: when results arrive faster than the
+    files can be rewritten (thousands of records on a cluster), the records
+    that arrive while waiting go into the next rewrite together, and any left
+    are written before returning (also on an interrupt).  A task that raises
+    (other than a diverging trainer, which is a result) is reported in
     ``failed`` and not recorded; running the sweep again retries it.
     """
     backend = backend or LocalBackend()
@@ -911,16 +931,27 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, backend: LocalBackend | RayB
             on_start(len(plan.tasks), skipped)
         finished = 0
         failed: list[tuple[Task, BaseException]] = []
-        if todo:
-            for payload, result in backend.run([t.payload for t in todo]):
-                task = by_key[payload["key"]]
-                if isinstance(result, BaseException):
-                    failed.append((task, result))
-                    continue
-                if store.add(result):
+        next_write, cost = 0.0, 0.0
+        try:
+            if todo:
+                for payload, result in backend.run([t.payload for t in todo]):
+                    task = by_key[payload["key"]]
+                    if isinstance(result, BaseException):
+                        failed.append((task, result))
+                        continue
+                    if not store.add(result, write=False):
+                        continue
                     finished += 1
+                    now = time.monotonic()
+                    if now >= next_write:
+                        store.write()
+                        cost = time.monotonic() - now
+                        next_write = now + cost / WRITE_BUDGET
                     if on_result is not None:
                         on_result(task, result)
+        finally:
+            if store.dirty:
+                store.write()
         records = {k: store.records[k] for k in by_key if k in store}
     return SweepOutcome(len(plan.tasks), skipped, finished, failed, records, time.perf_counter() - start)
 

@@ -298,6 +298,40 @@ def test_summary_and_heat_map_average_over_seeds(short_spec):
     assert heatmap_grid(plan_sweep(load_spec(short_spec), ["sigma=1"], [0], 2, 3), {}) is None
 
 
+class _InstantBackend:
+    """Results at once, without training (fake metrics), then optionally an interrupt."""
+
+    def __init__(self, interrupt_after: int | None = None) -> None:
+        self.interrupt_after = interrupt_after
+
+    def run(self, payloads):
+        for i, p in enumerate(payloads):
+            if i == self.interrupt_after:
+                raise KeyboardInterrupt
+            yield p, {"task": p["key"], "seed": p["seed"], "settings": p["settings"], "weights": p["weights"],
+                      "options": p["options"], "success_rate": i / 1000, "final_return": -1.0,
+                      "greedy_return": -1.0, "failing": {}, "error": None, "wall_s": 0.0, "cpu_s": 0.0,
+                      "host": "h"}
+
+
+def test_rewrites_are_coalesced_when_results_come_faster_than_the_files_are_written(short_spec, tmp_path,
+                                                                                      monkeypatch):
+    import mitlc.sweep as sweep_mod
+
+    plan = plan_sweep(load_spec(short_spec), ["weight.psi=" + ",".join(str(w) for w in range(1, 201))], [0], 2, 3)
+    writes = []
+    real_write = ResultStore.write
+    monkeypatch.setattr(ResultStore, "write", lambda self: (writes.append(len(self.records)), real_write(self)))
+    run_sweep(plan, tmp_path / "a", _InstantBackend())
+    assert writes[:2] == [0, 1] and len(writes) < 50 and writes[-1] == 200  # not 201 rewrites
+    monkeypatch.setattr(sweep_mod, "WRITE_BUDGET", 1e-12)  # a write "costs" forever: only the first and last
+    writes.clear()
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(plan, tmp_path / "b", _InstantBackend(interrupt_after=150))
+    assert writes == [0, 1, 150]  # the 149 results that waited are written on the way out
+    assert len(csv_rows(tmp_path / "b" / "results.csv")) == 150
+
+
 # ---------------------------------------------------------------- backends
 
 
