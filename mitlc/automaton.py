@@ -59,7 +59,7 @@ import numpy as np
 
 from mitlc.ast import fmt_number
 from mitlc.criteria import DEFAULT_SETTLING_BAND
-from mitlc.errors import InputError, SpecError
+from mitlc.errors import InputError, MitlError, SpecError
 from mitlc.spec import Requirement, Spec
 
 __all__ = [
@@ -996,6 +996,13 @@ def compile_requirements(
     >>> print(h.edge("S", "P").guard)
     (q0 < 0 & (q < 0.1*q0 | q > 0)) | (q0 >= 0 & (q > 0.1*q0 | q < 0))
     """
+    try:
+        return _compile(spec, constants, permanent_penalty)
+    except MitlError as exc:
+        raise exc.located(spec.path, spec.source) from None
+
+
+def _compile(spec: Spec, constants: RewardConstants | None, permanent_penalty: bool | None) -> HybridAutomaton:
     if not spec.requirements:
         raise SpecError("the spec has no 'require' statement: nothing to build a hybrid automaton from",
                         file=spec.path)

@@ -98,6 +98,14 @@ class HyrlSettings:
     A larger noise keeps the mass from staying in the narrow S band of a small step
     (the thesis's own observation for |q0| < 0.1, section 3-3-1)."""
 
+    sigma_decay: float = 1.0
+    """Exploration decay per trial: trial ``k`` (from 0) explores with
+    ``max(sigma_min, sigma * sigma_decay**k)``.  The thesis gives no schedule but asks
+    for less exploration "in the later phase of the learning process" (section 2-1-2)."""
+
+    sigma_min: float = 0.0
+    """Floor of the decayed exploration."""
+
     trial_s: float | None = None
     """Trial duration in s; ``None``: the spec's ``horizon``, else 5 s (Table 3-2)."""
 
@@ -131,7 +139,9 @@ class HyrlSettings:
         for name in ("gamma", "lam"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise TrainingError(f"{name} must be in [0, 1], got {getattr(self, name)}")
-        for name in ("alpha_c", "alpha_a", "rbf_width", "sigma"):
+        if not 0.0 < self.sigma_decay <= 1.0:
+            raise TrainingError(f"sigma_decay must be in (0, 1], got {self.sigma_decay}")
+        for name in ("alpha_c", "alpha_a", "rbf_width", "sigma", "sigma_min"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise TrainingError(f"{name} must be a non-negative number, got {v}")
@@ -311,6 +321,11 @@ class HybridLearner:
         self._snapshot: _Snapshot | None = None
 
     # ------------------------------------------------------------ helpers
+    def sigma_at(self, trial: int) -> float:
+        """Exploration standard deviation of trial ``trial`` (counted from 0)."""
+        st = self.settings
+        return max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
+
     def phi(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
         """Features of the augmented state, ``(R, F)``."""
         cols = [x[:, 0], x[:, 1], q0]
@@ -409,7 +424,7 @@ class HybridLearner:
         noise = np.empty((N, R))
         for r, g in enumerate(self.rngs):
             noise[:, r] = g.standard_normal(N)
-        noise *= st.sigma
+        noise *= self.sigma_at(self.trial)
         q0 = x[:, 0].copy()
         mode, t = A.reset(x)
         phi = self.phi(x, q0, t, 0.0)

@@ -59,7 +59,7 @@ def reference_trials(spec, settings, runs, seed, trials):
         for trial in range(trials):
             (qlo, qhi), (vlo, vhi) = A.q0_range, A.qdot0_range
             x = np.array([[rng.uniform(qlo, qhi), rng.uniform(vlo, vhi)]])
-            noise = rng.standard_normal(N) * st.sigma
+            noise = rng.standard_normal(N) * max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
             q0 = x[:, 0].copy()
             mode, t = A.reset(x)
             phi = learner.phi(x, q0, t, 0.0)[0]
@@ -95,7 +95,7 @@ def reference_trials(spec, settings, runs, seed, trials):
 @pytest.mark.parametrize("name", ["overshoot", "rise_time"])
 def test_batched_learner_equals_the_per_run_loop(md_specs, name):
     spec = md_specs[name]
-    settings = dataclasses.replace(SHORT, sigma=3.0)
+    settings = dataclasses.replace(SHORT, sigma=3.0, sigma_decay=0.8, sigma_min=2.0)
     learner = HybridLearner(spec, settings, runs=3, seed=11)
     returns = learner.train(4)
     ref_returns, ref_xi, ref_theta = reference_trials(spec, settings, 3, 11, 4)

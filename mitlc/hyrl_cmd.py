@@ -1,0 +1,289 @@
+"""Command-line pieces for classical-performance specs: ``mitlc automaton`` and HyRL training.
+
+:func:`train_hybrid_cli` is what ``mitlc train --spec SPEC`` does for a spec
+with ``require`` statements (no formula).  It trains HyRL
+(:mod:`mitlc.hyrl`), judges every run's greedy policy from 50 initial positions
+with the classical-criteria checker (:mod:`mitlc.criteria`) and writes, to
+``out``, atomically:
+
+* ``metrics.json``: ``returns`` (runs x trials), ``success_rate`` (fraction of
+  runs meeting every requirement from all 50 initial states),
+  ``state_success_rate``, per-requirement rates, measured criteria, ``wall_s``,
+  the settings;
+* ``params.npz``: the learner (parameters, generator states, the spec's text);
+* ``learning_curve.png`` and ``rollout.png`` (position and input with the
+  mode as background colour, like Figure 3-7).
+
+:func:`automaton` is the ``mitlc automaton SPEC`` click command.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+import click
+import numpy as np
+
+from mitlc.errors import InputError, TrainingError
+
+__all__ = [
+    "train_hybrid_cli",
+    "automaton",
+    "rollout_mode_figure",
+    "metrics_of",
+    "AUTOMATON_FORMATS",
+    "PARAMS",
+]
+
+PARAMS = "params.npz"
+AUTOMATON_FORMATS = ("text", "json", "dot", "svg", "png")
+SMALL_STEP = 0.1
+"""Steps smaller than this (|q0 - setpoint|) are reported apart: the thesis's overshoot
+result holds for |q0| >= 0.1 only (section 3-3-1)."""
+
+
+def _cli():
+    # mitlc.cli imports the command modules to register them: import it lazily.
+    from mitlc import cli
+
+    return cli
+
+
+def _load_spec(spec: Any):
+    from mitlc.parse import load_spec
+    from mitlc.spec import Spec
+
+    if isinstance(spec, Spec):
+        return spec
+    return load_spec(str(spec))
+
+
+# ---------------------------------------------------------------- figures
+
+
+def rollout_mode_figure(ro, automaton, rows: Sequence[int], u_max: float | None = None, title: str = ""):
+    """Position and input of a few greedy rollouts, one column each, the mode of the
+    automaton as background colour (Figure 3-7: I green, E yellow, S blue, P red)."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+
+    rows = list(rows)
+    n = len(rows)
+    fig = Figure(figsize=(3.6 * n + 0.6, 4.6))
+    axes = fig.subplots(2, n, sharex=True, squeeze=False)
+    N1 = ro.states.shape[1]
+    t = np.arange(N1) * ro.dt
+    # the evaluating modes get shades of yellow/orange to tell them apart
+    e_shades = ["#fef08a", "#fed7aa", "#fde68a", "#fdba74"]
+    colour = {}
+    e_count = 0
+    for m in automaton.modes:
+        if m.kind == "E":
+            colour[m.name] = e_shades[e_count % len(e_shades)]
+            e_count += 1
+        else:
+            colour[m.name] = {"I": "#bbf7d0", "S": "#bfdbfe", "P": "#fecaca"}[m.kind]
+    used: list[str] = []
+    for col, b in enumerate(rows):
+        modes = ro.modes[b]
+        starts = np.flatnonzero(np.r_[True, modes[1:] != modes[:-1]])
+        ends = np.r_[starts[1:], N1 - 1]
+        for ax in axes[:, col]:
+            for s, e in zip(starts, ends):
+                name = automaton.names[int(modes[s])]
+                if name not in used:
+                    used.append(name)
+                ax.axvspan(t[s], t[e] if e > s else t[s] + ro.dt, color=colour[name], lw=0)
+            ax.grid(alpha=0.3)
+            ax.set_xlim(t[0], t[-1])
+        q = ro.states[b, :, 0]
+        axes[0, col].plot(t, q, "k", lw=1.3)
+        axes[0, col].axhline(automaton.setpoint, color="k", lw=0.6, ls=":")
+        axes[0, col].set_title(f"q0 = {q[0]:.2f}", fontsize=9)
+        axes[1, col].step(t[:-1], ro.actions[b], where="post", color="k", lw=1.0)
+        if u_max is not None:
+            axes[1, col].set_ylim(-1.1 * u_max, 1.1 * u_max)
+        axes[1, col].set_xlabel("time [s]")
+    axes[0, 0].set_ylabel("position q [m]")
+    axes[1, 0].set_ylabel("input u [N]")
+    handles = [Patch(color=colour[m], label=m) for m in automaton.names if m in used]
+    fig.legend(handles=handles, loc="upper right", fontsize=8, title="mode", title_fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout(rect=(0, 0, 0.92 if n > 1 else 0.85, 1))
+    return fig
+
+
+def _example_rows(ev, run: int = 0) -> list[int]:
+    """Rows of the evaluation rollout for run ``run``: the first, middle and last initial state."""
+    n = len(ev.q0)
+    picks = sorted({0, n // 2, n - 1})
+    return [run * n + i for i in picks]
+
+
+# ---------------------------------------------------------------- metrics
+
+
+def metrics_of(learner, ev, wall_s: float) -> dict:
+    """What ``metrics.json`` holds for a trained learner and its evaluation."""
+    A = learner.automaton
+    step = np.abs(ev.q0 - A.setpoint)
+    big = step >= SMALL_STEP
+    measured = {}
+    for name, m in ev.measured.items():
+        finite = m[np.isfinite(m)]
+        measured[name] = {
+            "median": float(np.median(m)) if m.size else None,
+            "min": float(finite.min()) if finite.size else None,
+            "max": float(finite.max()) if finite.size else None,
+            "non_finite": int((~np.isfinite(m)).sum()),
+        }
+    out = {
+        "spec": learner.spec.path,
+        "requirements": [{"name": r.name, "lo": r.lo, "hi": r.hi, "band": r.band} for r in A.requirements],
+        "setpoint": A.setpoint,
+        "modes": list(A.names),
+        "runs": learner.runs,
+        "trials": learner.trial,
+        "seed": learner.seed,
+        "settings": learner.settings.to_dict(),
+        "n_features": learner.n_features,
+        "feature_vars": list(learner.features.names),
+        "wall_s": round(float(wall_s), 3),
+        "run_steps": int(learner.runs * learner.trial * learner.n_steps),
+        "initial_states": len(ev.q0),
+        "success_rate": ev.success_rate(),
+        "state_success_rate": ev.state_rate(),
+        "success_rate_by_requirement": {k: float(p.all(axis=1).mean()) for k, p in ev.passed_each.items()},
+        f"success_rate_step_ge_{SMALL_STEP}": ev.success_rate(big) if big.any() else None,
+        f"state_success_rate_step_ge_{SMALL_STEP}": ev.state_rate(big) if big.any() else None,
+        "runs_meeting_all": [bool(v) for v in ev.run_success()],
+        "visited_p_rate": float(ev.visited_p.mean()),
+        "measured": measured,
+        "final_mean_return": float(learner.returns[:, -min(10, learner.returns.shape[1]):].mean())
+        if learner.returns.size else None,
+        "returns": learner.returns.round(6).tolist(),
+    }
+    return out
+
+
+# ---------------------------------------------------------------- training
+
+
+def train_hybrid_cli(
+    spec: Any,
+    runs: int,
+    trials: int,
+    seed: int,
+    out: str | Path,
+    progress: bool = True,
+    settings=None,
+    n_init: int = 50,
+    plots: bool = True,
+) -> dict:
+    """Train HyRL on a classical-performance spec (a path or a parsed spec) and write
+    ``metrics.json``, ``params.npz``, ``learning_curve.png`` and ``rollout.png`` to ``out``.
+
+    Returns the metrics.  Ctrl-C stops after the last complete trial, writes the
+    learner so far (``interrupted: true``) and re-raises.
+    """
+    from tqdm import tqdm
+
+    from mitlc.hyrl import HybridLearner, HyrlSettings, evaluate
+    from mitlc.plots import learning_curve, png_bytes
+
+    cli = _cli()
+    s = _load_spec(spec)
+    if not s.requirements:
+        raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
+    bar = tqdm(total=trials, disable=not progress, unit="trial", dynamic_ncols=True,
+               desc=Path(s.path or "spec").stem)
+
+    def step(trial: int, returns: np.ndarray) -> None:
+        bar.set_postfix_str(f"mean return {learner.returns[:, -10:].mean():8.1f}", refresh=False)
+        bar.update(1)
+
+    interrupted = False
+    start = time.perf_counter()
+    try:
+        learner.train(trials, step)
+    except KeyboardInterrupt:
+        interrupted = True
+    except TrainingError:
+        bar.close()
+        raise
+    finally:
+        bar.close()
+    wall = time.perf_counter() - start
+    cli.atomic_write(out / PARAMS, learner.to_bytes())
+    name = Path(s.path or "spec").stem
+    if learner.trial > 0:
+        ev = evaluate(learner, n_init)
+        metrics = metrics_of(learner, ev, wall)
+        if plots:
+            cli.atomic_write(out / "learning_curve.png",
+                             png_bytes(learning_curve(learner.returns, title=f"{name}: HyRL, {learner.runs} runs")))
+            fig = rollout_mode_figure(
+                ev.rollout, learner.automaton, _example_rows(ev), learner.u_max,
+                f"{name}: greedy policy of run 0 (background: mode)",
+            )
+            cli.atomic_write(out / "rollout.png", png_bytes(fig))
+    else:
+        metrics = {"spec": s.path, "runs": runs, "trials": 0, "wall_s": round(wall, 3), "returns": []}
+    metrics["interrupted"] = interrupted
+    cli.atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
+    if interrupted:
+        raise KeyboardInterrupt
+    if progress:
+        click.echo(
+            f"{learner.runs} runs x {learner.trial} trials in {wall:.1f} s; "
+            f"final mean return {metrics.get('final_mean_return', float('nan')):.1f}; "
+            f"success rate {metrics.get('success_rate', float('nan')):.2f} "
+            f"({metrics.get('initial_states', 0)} initial states per run); results in {out}",
+            err=True,
+        )
+    return metrics
+
+
+# ---------------------------------------------------------------- mitlc automaton
+
+
+@click.command("automaton")
+@click.argument("spec", type=click.Path(dir_okay=False))
+@click.option("--format", "fmt", type=click.Choice(AUTOMATON_FORMATS), default="text", show_default=True,
+              help="What to write: a readable summary, JSON, Graphviz DOT or a rendered picture.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="Write to this file (atomically) instead of standard output.")
+def automaton(spec: str, fmt: str, output: str | None) -> None:
+    """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B)."""
+    cli = _cli()
+
+    @cli.handle_errors
+    def run() -> None:
+        from mitlc.automaton import compile_requirements, render_bytes
+        from mitlc.parse import load_spec
+
+        s = load_spec(spec)
+        for w in s.warnings:
+            click.echo(w, err=True)
+        h = compile_requirements(s)
+        if fmt in ("svg", "png"):
+            if output is None:
+                raise InputError(f"--format {fmt} needs -o FILE", file="--output")
+            cli.atomic_write(output, render_bytes(h, fmt))
+            return
+        text = {"text": lambda: str(h) + "\n", "json": lambda: h.to_json() + "\n",
+                "dot": lambda: h.to_digraph().source}[fmt]()
+        if output is None:
+            click.echo(text, nl=False)
+        else:
+            cli.atomic_write(output, text)
+
+    run()

@@ -1,0 +1,56 @@
+"""``mitlc automaton`` and the HyRL training entry point of ``mitlc train``."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from click.testing import CliRunner
+
+from mitlc.hyrl import HyrlSettings, load_learner
+from mitlc.hyrl_cmd import automaton, train_hybrid_cli
+
+
+def test_automaton_text_json_dot(spec_dir, tmp_path):
+    spec = str(spec_dir / "mass_damper" / "overshoot.mitl")
+    runner = CliRunner()
+    res = runner.invoke(automaton, [spec])
+    assert res.exit_code == 0, res.output
+    assert "E_Mp -> P  [violation]  (q0 < 0 & q > 0) | (q0 >= 0 & q < 0)" in res.output
+    res = runner.invoke(automaton, [spec, "--format", "json"])
+    d = json.loads(res.output)
+    assert [m["name"] for m in d["modes"]] == ["I", "E_Mp", "S", "P"]
+    out = tmp_path / "h.dot"
+    res = runner.invoke(automaton, [spec, "--format", "dot", "-o", str(out)])
+    assert res.exit_code == 0 and out.read_text().startswith("digraph automaton")
+
+
+def test_automaton_errors_are_one_line_and_exit_2(tmp_path):
+    bad = tmp_path / "bad.mitl"
+    bad.write_text("plant mass-damper\ninit q in [-1, 1]\nrequire overshoot in [0.1, 0.2]\n")
+    res = CliRunner().invoke(automaton, [str(bad)])
+    assert res.exit_code == 2
+    assert "bad.mitl:3:9: error: overshoot takes an upper bound only" in res.output
+    res = CliRunner().invoke(automaton, [str(bad).replace("bad", "missing")])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    formula = tmp_path / "f.mitl"
+    formula.write_text("prop k = abs(q) < 1\nformula F k\n")
+    res = CliRunner().invoke(automaton, [str(formula), "--format", "png"])
+    assert res.exit_code == 2 and "no 'require'" in res.output
+
+
+def test_train_hybrid_cli_writes_everything(spec_dir, tmp_path):
+    out = tmp_path / "run"
+    m = train_hybrid_cli(spec_dir / "mass_damper" / "overshoot.mitl", runs=2, trials=3, seed=4, out=out,
+                         progress=False, settings=HyrlSettings(trial_s=0.6), n_init=5)
+    for f in ("metrics.json", "params.npz", "learning_curve.png", "rollout.png"):
+        assert (out / f).is_file(), f
+    on_disk = json.loads((out / "metrics.json").read_text())
+    assert on_disk == json.loads(json.dumps(m))
+    assert np.array(on_disk["returns"]).shape == (2, 3)
+    assert on_disk["initial_states"] == 5 and 0.0 <= on_disk["success_rate"] <= 1.0
+    assert set(on_disk["success_rate_by_requirement"]) == {"overshoot"}
+    assert on_disk["interrupted"] is False and on_disk["wall_s"] > 0
+    learner = load_learner(out / "params.npz")
+    np.testing.assert_allclose(learner.returns, on_disk["returns"], atol=1e-6)
+    assert (out / "rollout.png").read_bytes()[:4] == b"\x89PNG"
