@@ -783,24 +783,32 @@ class LocalBackend:
                 if broken:  # every task in flight is lost with the pool: wait until all say so
                     wait(running)
                     done = set(running)
+                outcomes: list[Outcome] = []
                 for fut in done:
                     p = running.pop(fut)
                     exc = fut.exception()
                     if isinstance(exc, BrokenProcessPool):
                         losses[p["key"]] += 1
                         if losses[p["key"]] > self.max_retries:
-                            yield p, WorkerLost(f"its worker died {losses[p['key']]} times")
+                            outcomes.append((p, WorkerLost(f"its worker died {losses[p['key']]} times")))
                         else:
                             queue.appendleft(p)
                             if self.on_retry is not None:
                                 self.on_retry(p, losses[p["key"]] + 1)
-                    elif exc is not None:
-                        yield p, exc
                     else:
-                        yield p, fut.result()
+                        outcomes.append((p, exc if exc is not None else fut.result()))
                 if broken:
                     pool.shutdown(wait=True, cancel_futures=True)
                     pool = None
+                else:  # give the idle workers their next tasks before the results are written
+                    while queue and len(running) < self.workers:
+                        p = queue.popleft()
+                        try:
+                            running[pool.submit(run_task, p)] = p
+                        except BrokenProcessPool:
+                            queue.appendleft(p)
+                            break
+                yield from outcomes
         finally:
             if pool is not None:
                 if running:  # stopped early (an interrupt): do not let the workers finish their tasks
