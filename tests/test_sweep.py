@@ -360,6 +360,26 @@ def test_local_and_ray_give_identical_metrics(short_spec, tmp_path):
     assert len(csv_rows(tmp_path / "ray" / "results.csv")) == 4
 
 
+def test_ray_address_joins_a_running_cluster(short_spec, tmp_path):
+    ray = pytest.importorskip("ray", reason="Ray is not installed: pip install 'mitlc[ray]' to run this test")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="WARNING")
+    try:
+        address = ray.get_runtime_context().gcs_address
+        proc = subprocess.run([sys.executable, "-m", "mitlc", "sweep", str(short_spec), "--grid", "sigma=1,3",
+                               "--seeds", "1", "--runs", "2", "--trials", "4", "--backend", "ray", "--address",
+                               address, "--out", str(tmp_path / "o"), "-q", "--no-plot"],
+                              capture_output=True, text=True, timeout=300)
+        assert ray.is_initialized()  # the sweep disconnected; the cluster it joined is still up
+    finally:
+        ray.shutdown()
+    assert proc.returncode == 0, proc.stderr
+    assert f"running on ray at {address}" in proc.stderr
+    plan = plan_sweep(load_spec(short_spec), ["sigma=1,3"], [0], runs=2, trials=4)
+    got = _records_by_key(tmp_path / "o")
+    for t in plan.tasks:
+        assert {m: got[t.key][m] for m in METRICS} == {m: run_task(t.payload)[m] for m in METRICS}
+
+
 def test_ray_backend_missing_is_a_clear_error(short_spec, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray raises ImportError
     res = run("sweep", short_spec, "--grid", "sigma=1,3", "--backend", "ray", "--runs", 1, "--trials", 1,
