@@ -832,8 +832,9 @@ class RayBackend:
     """Ray tasks (``pip install 'mitlc[ray]'``) on a cluster or on a Ray started for the sweep.
 
     ``address``: a running cluster (``auto``, ``HOST:6379`` or ``ray://HOST:10001``);
-    without it, ``RAY_ADDRESS`` if set, else a local Ray with ``workers`` CPUs
-    is started and stopped again at the end.  Each task asks for one CPU and
+    without it, ``RAY_ADDRESS`` if set, else a new local Ray with ``workers``
+    CPUs is started (even if a ``ray start`` cluster runs on this machine) and
+    stopped again at the end.  Each task asks for one CPU and
     is retried up to ``max_retries`` times if its worker or node dies.
     """
 
@@ -866,8 +867,9 @@ class RayBackend:
                 if self.address:
                     ray.init(address=self.address, logging_level=logging.WARNING, log_to_driver=False)
                 else:
-                    ray.init(num_cpus=self.workers, include_dashboard=False, logging_level=logging.WARNING,
-                             log_to_driver=False)
+                    # "local": a new Ray for this sweep, even if a `ray start` cluster runs on this machine
+                    ray.init(address="local", num_cpus=self.workers, include_dashboard=False,
+                             logging_level=logging.WARNING, log_to_driver=False)
             except (ConnectionError, RuntimeError, ValueError) as exc:
                 raise InputError(f"cannot start or reach Ray: {exc}", file="--address") from None
             connected_here = True
