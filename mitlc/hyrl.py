@@ -65,6 +65,7 @@ __all__ = [
     "evaluate",
     "compose",
     "load_learner",
+    "STABLE_FRACTION",
 ]
 
 
@@ -596,33 +597,46 @@ def train_hybrid(
 # ---------------------------------------------------------------- evaluation
 
 
+STABLE_FRACTION = 0.1
+"""A greedy response *stabilises* when it ends within this fraction of the step from the
+set-point: the width of the thesis's S band (Inv(delta_3) of (B-1): 0.1 q0 <= q <= 0).
+Criteria such as "no overshoot" alone are met by a controller that never moves."""
+
+
 @dataclass
 class Evaluation:
-    """Greedy rollouts of every run from a grid of initial positions, judged by
-    :mod:`mitlc.criteria`: ``passed (R, n)`` (all requirements), ``measured[name]
-    (R, n)``, ``q0 (n,)``; ``visited_p (R, n)``: the automaton reached P."""
+    """Greedy rollouts of every run from a grid of initial positions: ``passed (R, n)``
+    (every requirement, by :mod:`mitlc.criteria`), ``stabilised (R, n)`` (ends within
+    :data:`STABLE_FRACTION` of the step from the set-point), ``measured[name] (R, n)``,
+    ``q0 (n,)``; ``visited_p (R, n)``: the automaton reached P."""
 
     q0: np.ndarray
     passed: np.ndarray
+    stabilised: np.ndarray
     measured: dict[str, np.ndarray]
     passed_each: dict[str, np.ndarray]
     visited_p: np.ndarray
     rollout: HybridRollout
 
-    def run_success(self, where: np.ndarray | None = None) -> np.ndarray:
-        """Runs whose greedy policy meets every requirement from every initial state
-        (of those selected by ``where``), ``(R,)``."""
-        sel = np.ones(len(self.q0), dtype=bool) if where is None else np.asarray(where)
-        return self.passed[:, sel].all(axis=1)
+    def ok(self, stable: bool = True) -> np.ndarray:
+        """``(R, n)``: meets the criteria (and, with ``stable``, stabilises)."""
+        return self.passed & self.stabilised if stable else self.passed
 
-    def success_rate(self, where: np.ndarray | None = None) -> float:
-        """Fraction of runs meeting the criteria from all (selected) initial states."""
-        return float(self.run_success(where).mean())
+    def _sel(self, where: np.ndarray | None) -> np.ndarray:
+        return np.ones(len(self.q0), dtype=bool) if where is None else np.asarray(where)
 
-    def state_rate(self, where: np.ndarray | None = None) -> float:
-        """Fraction of (run, initial state) pairs meeting the criteria."""
-        sel = np.ones(len(self.q0), dtype=bool) if where is None else np.asarray(where)
-        return float(self.passed[:, sel].mean())
+    def run_success(self, where: np.ndarray | None = None, stable: bool = True) -> np.ndarray:
+        """Runs whose greedy policy succeeds from every initial state (of those selected by
+        ``where``), ``(R,)``."""
+        return self.ok(stable)[:, self._sel(where)].all(axis=1)
+
+    def success_rate(self, where: np.ndarray | None = None, stable: bool = True) -> float:
+        """Fraction of runs succeeding from all (selected) initial states."""
+        return float(self.run_success(where, stable).mean())
+
+    def state_rate(self, where: np.ndarray | None = None, stable: bool = True) -> float:
+        """Fraction of (run, initial state) pairs that succeed."""
+        return float(self.ok(stable)[:, self._sel(where)].mean())
 
 
 def _judge(spec_or_automaton: Spec | HybridAutomaton, ro: HybridRollout) -> Verdict:
@@ -643,9 +657,13 @@ def _grid_evaluation(automaton: HybridAutomaton, runs: int, n_init: int,
     ro = roll(x0, run)
     v = _judge(automaton, ro)
     shape = (R, n_init)
+    s = automaton.setpoint
+    final = ro.states[:, -1, 0]
+    stabilised = np.abs(final - s) <= STABLE_FRACTION * np.abs(x0[:, 0] - s)
     return Evaluation(
         q0=q0,
         passed=v.all.reshape(shape),
+        stabilised=stabilised.reshape(shape),
         measured={k: m.reshape(shape) for k, m in v.measured.items()},
         passed_each={k: p.reshape(shape) for k, p in v.passed.items()},
         visited_p=ro.visited("P").reshape(shape),

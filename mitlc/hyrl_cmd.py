@@ -7,7 +7,8 @@ with the classical-criteria checker (:mod:`mitlc.criteria`) and writes, to
 ``out``, atomically:
 
 * ``metrics.json``: ``returns`` (runs x trials), ``success_rate`` (fraction of
-  runs meeting every requirement from all 50 initial states),
+  runs meeting every requirement and ending near the set-point from all 50
+  initial states; ``criteria_success_rate`` without the second condition),
   ``state_success_rate``, per-requirement rates, measured criteria, ``wall_s``,
   the settings;
 * ``params.npz``: the learner (parameters, generator states, the spec's text);
@@ -129,7 +130,15 @@ def _example_rows(ev, run: int = 0) -> list[int]:
 
 
 def metrics_of(learner, ev, wall_s: float) -> dict:
-    """What ``metrics.json`` holds for a trained learner and its evaluation."""
+    """What ``metrics.json`` holds for a trained learner and its evaluation.
+
+    ``success_rate``: fraction of runs whose greedy policy, from every initial state,
+    meets every requirement (by the checker) *and* stabilises (ends within
+    ``stable_fraction`` of the step from the set-point); ``criteria_success_rate``
+    without the second condition.
+    """
+    from mitlc.hyrl import STABLE_FRACTION
+
     A = learner.automaton
     step = np.abs(ev.q0 - A.setpoint)
     big = step >= SMALL_STEP
@@ -158,10 +167,14 @@ def metrics_of(learner, ev, wall_s: float) -> dict:
         "initial_states": len(ev.q0),
         "success_rate": ev.success_rate(),
         "state_success_rate": ev.state_rate(),
+        "criteria_success_rate": ev.success_rate(stable=False),
+        "criteria_state_success_rate": ev.state_rate(stable=False),
+        "stabilised_state_rate": float(ev.stabilised.mean()),
+        "stable_fraction": STABLE_FRACTION,
         "success_rate_by_requirement": {k: float(p.all(axis=1).mean()) for k, p in ev.passed_each.items()},
         f"success_rate_step_ge_{SMALL_STEP}": ev.success_rate(big) if big.any() else None,
         f"state_success_rate_step_ge_{SMALL_STEP}": ev.state_rate(big) if big.any() else None,
-        "runs_meeting_all": [bool(v) for v in ev.run_success()],
+        "runs_succeeding": [bool(v) for v in ev.run_success()],
         "visited_p_rate": float(ev.visited_p.mean()),
         "measured": measured,
         "final_mean_return": float(learner.returns[:, -min(10, learner.returns.shape[1]):].mean())
