@@ -21,7 +21,7 @@ with the classical-criteria checker (:mod:`mitlc.criteria`) and writes, to
 from __future__ import annotations
 
 import json
-import time
+import sys
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -197,26 +197,37 @@ def train_hybrid_cli(
     settings=None,
     n_init: int = 50,
     plots: bool = True,
+    resume: str | Path | None = None,
 ) -> dict:
     """Train HyRL on a classical-performance spec (a path or a parsed spec) and write
     ``metrics.json``, ``params.npz``, ``learning_curve.png`` and ``rollout.png`` to ``out``.
 
-    Returns the metrics.  Ctrl-C stops after the last complete trial, writes the
-    learner so far (``interrupted: true``) and re-raises.
+    ``trials`` counts all trials, those of a ``resume`` directory's checkpoint
+    included (its spec, runs, seed and settings are used).  Returns the metrics.
+    Ctrl-C stops after the last complete trial, writes everything so far
+    (``interrupted: true``) and exits with status 130.
     """
     from tqdm import tqdm
 
-    from mitlc.hyrl import HybridLearner, HyrlSettings, evaluate
+    from mitlc.hyrl import HybridLearner, HyrlSettings, evaluate, load_learner
     from mitlc.plots import learning_curve, png_bytes
 
     cli = _cli()
-    s = _load_spec(spec)
-    if not s.requirements:
-        raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
+    if resume is not None:
+        ckpt = Path(resume) / PARAMS
+        if not ckpt.is_file():
+            raise InputError(f"no checkpoint {PARAMS} in {resume}", file=str(resume))
+        learner = load_learner(ckpt)
+        s = learner.spec
+    else:
+        s = _load_spec(spec)
+        if not s.requirements:
+            raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
+        learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
-    bar = tqdm(total=trials, disable=not progress, unit="trial", dynamic_ncols=True,
+    done_before = learner.trial
+    bar = tqdm(total=trials, initial=done_before, disable=not progress, unit="trial", dynamic_ncols=True,
                desc=Path(s.path or "spec").stem)
 
     def step(trial: int, returns: np.ndarray) -> None:
@@ -224,9 +235,8 @@ def train_hybrid_cli(
         bar.update(1)
 
     interrupted = False
-    start = time.perf_counter()
     try:
-        learner.train(trials, step)
+        learner.train(max(0, trials - done_before), step)
     except KeyboardInterrupt:
         interrupted = True
     except TrainingError:
@@ -234,7 +244,7 @@ def train_hybrid_cli(
         raise
     finally:
         bar.close()
-    wall = time.perf_counter() - start
+    wall = learner.wall_s  # training time, summed over resumed sessions
     cli.atomic_write(out / PARAMS, learner.to_bytes())
     name = Path(s.path or "spec").stem
     if learner.trial > 0:
@@ -253,7 +263,9 @@ def train_hybrid_cli(
     metrics["interrupted"] = interrupted
     cli.atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
     if interrupted:
-        raise KeyboardInterrupt
+        click.echo(f"interrupted after trial {learner.trial}; checkpoint in {out / PARAMS}\n"
+                   f"continue with: mitlc train --resume {out} --trials {trials}", err=True)
+        sys.exit(130)
     if progress:
         click.echo(
             f"{learner.runs} runs x {learner.trial} trials in {wall:.1f} s; "

@@ -153,6 +153,6 @@ register(
         defaults={"M": 0.5, "B": 0.05, "u_max": 10.0, "dt": 0.03},
         dynamics=_mass_damper,
         description="mass-damper of appendix A-1 (M = 0.5 kg, B = 0.05 N s/m); q in m, qdot in m/s",
-        default_spec=None,
+        default_spec="mass_damper/overshoot.mitl",
     )
 )

@@ -54,3 +54,14 @@ def test_train_hybrid_cli_writes_everything(spec_dir, tmp_path):
     learner = load_learner(out / "params.npz")
     np.testing.assert_allclose(learner.returns, on_disk["returns"], atol=1e-6)
     assert (out / "rollout.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_train_hybrid_cli_resumes_to_the_same_numbers(spec_dir, tmp_path):
+    spec = spec_dir / "mass_damper" / "overshoot.mitl"
+    settings = HyrlSettings(trial_s=0.3)
+    straight = train_hybrid_cli(spec, 2, 4, 1, tmp_path / "a", progress=False, settings=settings, n_init=3,
+                                plots=False)
+    train_hybrid_cli(spec, 2, 2, 1, tmp_path / "b", progress=False, settings=settings, n_init=3, plots=False)
+    resumed = train_hybrid_cli(None, 0, 4, 0, tmp_path / "b", progress=False, n_init=3, plots=False,
+                               resume=tmp_path / "b")
+    assert resumed["trials"] == 4 and resumed["returns"] == straight["returns"]
