@@ -36,7 +36,7 @@ from mitlc import ast as A
 from mitlc import predicates as P
 from mitlc import reward as R
 from mitlc.errors import CompileError
-from mitlc.net import Guard, GuardTerm, Net, Place, SubNet, Transition
+from mitlc.net import Guard, GuardTerm, Net, Place, SubNet, Transition, eval_state
 from mitlc.passes import is_state_formula, normal_form, push_negations
 from mitlc.spec import Spec
 
@@ -53,9 +53,10 @@ class CompileOptions:
 
     violations: str = "off"
     """``off``: the thesis's nets.  ``permanent``: an absorbing violated place per
-    safety or deadline part and a penalty large enough that no violating run
-    out-earns a satisfying one.  ``counted``: safety parts count their violations
-    (docs/semantics.md, section 6)."""
+    safety or deadline part, and from a violation on the reward is pinned below
+    anything a trial without violations can earn.  ``counted``: safety parts
+    count their violations and each costs a one-time penalty (docs/semantics.md,
+    section 6)."""
 
     @staticmethod
     def from_spec(spec: Spec, **overrides: str | None) -> "CompileOptions":
@@ -75,7 +76,10 @@ class RewardSystem:
     groups: tuple[tuple[str, ...], ...]
     options: CompileOptions
     penalty: float = 0.0
-    """The one-time penalty for each violation (0 without ``violations``)."""
+    """``counted``: the one-time cost of each violation (0 otherwise)."""
+
+    pinned: float | None = None
+    """``permanent``: the reward of every step from the first violation on (None otherwise)."""
 
     @property
     def atoms(self) -> tuple[str, ...]:
@@ -746,15 +750,79 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
     builder = _Builder(spec, options, formula)
     everything = builder._all() if builder.segments else frozenset()
     reward = builder.reward(formula, everything, under_g=False, conj=True)
-    penalty = 0.0
+    penalty, pinned = 0.0, None
+    net, resolved = builder.assemble(reward)
     if builder.penalties:
-        lo, hi = R.bounds(reward)
-        steps = _steps(spec)
-        penalty = steps * (hi - lo) + 1.0
-        new = [R.Sum((_tokens([p]), R.Neg(_tokens([p], prev=True)))) for p in builder.penalties]
-        reward = R.Sum((reward, R.Neg(R.scale(penalty, new[0] if len(new) == 1 else R.Sum(tuple(new))))))
-    net, reward = builder.assemble(reward)
-    return RewardSystem(spec, nf, net, reward, builder.groups, options, penalty)
+        lo, hi = _bounds_without_violation(builder, net, resolved)
+        if options.violations == "permanent":
+            # r' = (1 - v) r + v r_pin, v = 1 once any watched part is violated
+            pinned = lo - 1.0
+            marks = [_tokens([p]) for p in builder.penalties]
+            v = marks[0] if len(marks) == 1 else R.Max(tuple(marks))
+            reward = R.Sum((R.Prod((R.Sum((R.ONE, R.Neg(v))), reward)), R.scale(pinned, v)))
+        else:
+            # r' = r - c * (new violations), c more than one step can gain
+            penalty = hi - lo + 1.0
+            new = [R.Sum((_tokens([p]), R.Neg(_tokens([p], prev=True)))) for p in builder.penalties]
+            reward = R.Sum((reward, R.Neg(R.scale(penalty, new[0] if len(new) == 1 else R.Sum(tuple(new))))))
+        resolved = _resolve(reward, {p.name: i for i, p in enumerate(net.places)})
+    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, pinned)
+
+
+MAX_PAIRS = 200_000
+"""Most marking pairs enumerated to bound the reward of steps without a violation."""
+
+
+def _contains(outer: A.Interval, inner: A.Interval) -> bool:
+    lo_ok = outer.lo < inner.lo or (outer.lo == inner.lo and (outer.lo_closed or not inner.lo_closed))
+    hi_ok = outer.hi > inner.hi or (outer.hi == inner.hi and (outer.hi_closed or not inner.hi_closed))
+    return lo_ok and hi_ok
+
+
+def _bounds_without_violation(builder: "_Builder", net: Net, reward: R.RExpr) -> tuple[float, float]:
+    """Bounds of ``reward`` over the steps on which no watched part is violated.
+
+    Every one-move step of the net is enumerated; a step is left out when a
+    violation place is marked after it, or when a watch's guard surely holds
+    on it (its state condition holds for the propositions the region places
+    say, and its clock interval covers the timeline segment) although the
+    watch stayed quiet. Falls back to interval bounds of the whole tree when
+    there are too many steps.
+    """
+    sizes = [len(sub.places) ** 2 for sub in net.subnets]
+    if float(np.prod(sizes, dtype=float)) > MAX_PAIRS:
+        return R.bounds(reward)
+    pairs = list(net.step_pairs())
+    prev = np.array([a for a, _ in pairs])
+    now = np.array([b for _, b in pairs])
+    idx = {p.name: i for i, p in enumerate(net.places)}
+    keep = np.ones(len(pairs), dtype=bool)
+    for name in builder.penalties:  # at or after a violation (its reward is pinned or penalised)
+        keep &= now[:, idx[name]] == 0
+    truth = {a: now[:, [idx[n] for n in pos]].sum(axis=1) > 0 for a, (pos, _) in builder.where.items()}
+    segments = {i: builder._segments_clock(frozenset({i})) for i in range(len(builder.segments))}
+    for sub in net.subnets:
+        if sub.role != "violation":
+            continue
+        ok = sub.places[0]
+        for t in sub.transitions:
+            tr = net.transitions[t]
+            if net.place_index(tr.inputs[0]) != ok:
+                continue
+            for term in tr.guard.terms:
+                sure = eval_state(term.state, truth) if term.state is not None else np.ones(len(pairs), bool)
+                if term.clock is not None:
+                    covered = np.zeros(len(pairs), dtype=bool)
+                    for i, seg in segments.items():
+                        if seg is not None and _contains(term.clock, seg):
+                            covered |= now[:, idx[builder.segments[i]]] > 0
+                    sure &= covered
+                keep &= ~sure
+        keep &= now[:, ok] > 0
+    if not keep.any():
+        return R.bounds(reward)
+    values = reward.evaluate(prev[keep], now[keep])
+    return float(values.min()), float(values.max())
 
 
 def _steps(spec: Spec) -> int:

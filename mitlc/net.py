@@ -236,7 +236,7 @@ class Net:
             seen, stack = {start}, [start]
             while stack:
                 for nxt in self.successors(stack.pop()):
-                    if nxt not in seen:
+                    if nxt in sub.places and nxt not in seen:  # counters are not the token's places
                         seen.add(nxt)
                         stack.append(nxt)
             per_subnet.append(sorted(seen))
@@ -253,7 +253,7 @@ class Net:
             options = []
             for sub in self.subnets:
                 here = next(i for i in sub.places if m[i])
-                options.append([here, *self.successors(here)])
+                options.append([here, *(j for j in self.successors(here) if j in sub.places)])
             for combo in itertools.product(*options):
                 nxt = np.zeros_like(m)
                 nxt[list(combo)] = 1

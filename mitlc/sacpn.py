@@ -422,7 +422,15 @@ class Sacpn:
         if self.runtime.tables is None:
             raise TrainingError("the reward net is too large to tabulate for training")
         self.n_places = self.runtime.n_places
-        self.n_tokens = self.runtime.n_subnets
+        # The critic weighs the rows of every marked place; the actor only those of
+        # the state and timing places: a violation sub-net (violations = permanent |
+        # counted) tells the critic that the rest of the trial is pinned, but is no
+        # reason to act differently in the same state.
+        acting = [s for s, sub in enumerate(rs.net.subnets) if sub.kind != "violation"]
+        self._marked_c = self.runtime.tables.marked
+        self._marked = np.ascontiguousarray(self._marked_c[:, acting])
+        self.n_tokens = len(acting)
+        self.n_tokens_c = self.runtime.n_subnets
         bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
         self.features = RbfFeatures(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
@@ -455,8 +463,8 @@ class Sacpn:
                 x[:, i] = (x[:, i] + np.pi) % (2 * np.pi) - np.pi
         return x
 
-    def _flat(self, code: np.ndarray, offset: np.ndarray) -> np.ndarray:
-        return self.runtime.tables.marked[code] + offset
+    def _flat(self, code: np.ndarray, offset: np.ndarray, critic: bool = False) -> np.ndarray:
+        return (self._marked_c if critic else self._marked)[code] + offset
 
     def policy(self, x: np.ndarray, code: np.ndarray, xi: np.ndarray | None = None) -> np.ndarray:
         """Greedy input ``pi(x, M)`` clipped to the input bound, ``(R,)``."""
@@ -473,8 +481,8 @@ class Sacpn:
         R = x.shape[0]
         phi = self.features(x)
         offset = (np.arange(R) * self.n_places)[:, None]
-        rows = self.theta.reshape(-1, self.n_features)[self._flat(code, offset)]
-        return np.einsum("rkf,rf->r", rows, phi) / self.n_tokens
+        rows = self.theta.reshape(-1, self.n_features)[self._flat(code, offset, critic=True)]
+        return np.einsum("rkf,rf->r", rows, phi) / self.n_tokens_c
 
     # ------------------------------------------------------------ training
     def train(self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None) -> np.ndarray:
@@ -531,18 +539,18 @@ class Sacpn:
         except the critic's trace update, which is one pass over ``Theta``.
         """
         st = self.settings
-        R, P, F, K = self.runs, self.n_places, self.n_features, self.n_tokens
+        R, P, F, K, KC = self.runs, self.n_places, self.n_features, self.n_tokens, self.n_tokens_c
         N = self.n_steps
         rt = self.runtime
         tables = rt.tables
-        next_code, reward_tab, marked = tables.next_code, tables.reward, tables.marked
+        next_code, reward_tab, marked, marked_c = tables.next_code, tables.reward, self._marked, self._marked_c
         atom_code, features, integrate, clock = rt.atom_code, self.features, self.integrate, self._clock
         gamma, gl = st.gamma, st.gamma * st.lam
         a_c, a_a = st.alpha_c, st.alpha_a
         u_max = self.u_max
         current = st.mask == "current"
         applied = st.saturation == "applied"
-        inv_k = 1.0 / K
+        inv_k, inv_kc = 1.0 / K, 1.0 / KC
         minimum, maximum, add, subtract, multiply, matmul = (
             np.minimum, np.maximum, np.add, np.subtract, np.multiply, np.matmul)
 
@@ -566,10 +574,14 @@ class Sacpn:
 
         code = rt.reset_code(x)
         # marked rows as flat indices into (R * P, F); with one token per run a 1-D index
-        one = K == 1
+        # (the actor's rows: flat; the critic's, which add the violation places: flat_c)
+        one, one_c = K == 1, KC == 1
         mk = marked[:, 0] if one else marked
+        mk_c = marked_c[:, 0] if one_c else marked_c
         off = offset[:, 0] if one else offset
+        off_c = offset[:, 0] if one_c else offset
         flat = mk[code] + off
+        flat_c = mk_c[code] + off_c
         phi = features(x)
         phi_next = np.empty_like(phi)
         ret = np.zeros(R)
@@ -577,19 +589,19 @@ class Sacpn:
         keep = np.zeros(R, dtype=bool)
         bootstrap = st.bootstrap_timeout
         vecdot = np.vecdot
-        sv_b = sv[:, None] if (one or not current) else sv[:, None, None]
+        sv_b = sv[:, None] if (one_c or not current) else sv[:, None, None]
         coef_b = coef[:, None] if one else coef[:, None, None]
 
-        def dot(rows: np.ndarray, ph: np.ndarray, out: np.ndarray) -> None:
-            if one:
+        def dot(rows: np.ndarray, ph: np.ndarray, out: np.ndarray, single: bool) -> None:
+            if single:
                 vecdot(rows, ph, out=out)
             else:
                 np.add.reduce(vecdot(rows, ph[:, None, :]), axis=1, out=out)
 
-        def rows_of(ph: np.ndarray) -> np.ndarray:  # phi shaped like the gathered rows
-            return ph if one else ph[:, None, :]
+        def rows_of(ph: np.ndarray, single: bool) -> np.ndarray:  # phi shaped like the gathered rows
+            return ph if single else ph[:, None, :]
 
-        dot(xi_f[flat], phi, u)
+        dot(xi_f[flat], phi, u, one)
         u *= inv_k
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             for k in range(N):
@@ -612,13 +624,15 @@ class Sacpn:
                 features(x, out=phi_next)
                 flat1 = mk[code1]
                 flat1 += off
+                flat1_c = mk_c[code1]
+                flat1_c += off_c
                 # TD error with Theta_k
-                dot(th_f[flat], phi, v0)
-                multiply(v0, -inv_k, out=delta)
+                dot(th_f[flat_c], phi, v0, one_c)
+                multiply(v0, -inv_kc, out=delta)
                 delta += r
                 if bootstrap or k < N - 1:
-                    dot(th_f[flat1], phi_next, v1)
-                    v1 *= gamma * inv_k
+                    dot(th_f[flat1_c], phi_next, v1, one_c)
+                    v1 *= gamma * inv_kc
                     delta += v1
                 # actor: xi += alpha_a delta du grad pi, grad pi = m phi(x_k)
                 multiply(delta, du, out=coef)
@@ -632,11 +646,11 @@ class Sacpn:
                 if scale < 1e-100:
                     e_hat *= scale
                     scale = 1.0
-                ph = rows_of(phi)
+                ph = rows_of(phi, one)
                 if current:
                     coef *= a_a * inv_k
                     xi_f[flat] += coef_b * ph
-                    e_hat_f[flat] += (inv_k / scale) * ph
+                    e_hat_f[flat_c] += (inv_kc / scale) * rows_of(phi, one_c)
                     multiply(delta, a_c * scale, out=sv)
                     multiply(e_hat, sv[:, None, None], out=tmp)
                     theta += tmp
@@ -646,11 +660,11 @@ class Sacpn:
                     e_hat += phi * (1.0 / scale)
                     multiply(delta, a_c * scale, out=sv)
                     multiply(e_hat, sv_b, out=tmp)
-                    th_f[flat1] += tmp if one else tmp[:, None, :]
+                    th_f[flat1_c] += tmp if one_c else tmp[:, None, :]
                 # next policy output with Xi_k+1
-                code, flat = code1, flat1
+                code, flat, flat_c = code1, flat1, flat1_c
                 phi, phi_next = phi_next, phi
-                dot(xi_f[flat], phi, u)
+                dot(xi_f[flat], phi, u, one)
                 u *= inv_k
         return ret
 

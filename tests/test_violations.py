@@ -43,22 +43,23 @@ def test_permanent_places_guards_and_penalty() -> None:
         ("p_violated_G_not_psi",): "psi",
     }
     assert {p.kind for p in net.places if "violated" in p.name or "p_ok" in p.name} == {"violation"}
-    # r in [-2, 2] per step, 100 steps: C = 100 * 4 + 1
-    assert rs.penalty == 401.0
+    # r in [-2, 2] per step: after a violation every step earns -2 - 1
+    assert rs.pinned == -3.0 and rs.penalty == 0.0
 
 
 def test_permanent_reward_by_hand() -> None:
     rs = compile_spec(parse_spec(P2_UNIT), CompileOptions(violations="permanent"))
     net = rs.net
     ok = ("p_ok_FG_kappa", "p_ok_G_not_psi")
-    # entering psi from "none": min((1+0)(0-1), (1+1)(0-1)) = -2, and the violation costs 401
+    # before any violation: the thesis's reward, min((1+1)(1-0), (1+1)(1-0)) = 2 for staying in kappa
+    assert rs.reward.evaluate(marking(net, "p_kappa", *ok), marking(net, "p_kappa", *ok)).tolist() == [2.0]
+    # entering psi from "none" violates G !psi: the step earns the pinned -3 (not min(-1, -2) = -2)
     prev = marking(net, "p_none_kappa_psi", *ok)
     now = marking(net, "p_psi", "p_ok_FG_kappa", "p_violated_G_not_psi")
-    assert rs.reward.evaluate(prev, now).tolist() == [-2.0 - 401.0]
-    # afterwards the token stays: no further penalty, only the base reward
-    prev2 = now
+    assert rs.reward.evaluate(prev, now).tolist() == [-3.0]
+    # and so does every later step, even in kappa, where the thesis's reward would pay 1
     now2 = marking(net, "p_kappa", "p_ok_FG_kappa", "p_violated_G_not_psi")
-    assert rs.reward.evaluate(prev2, now2).tolist() == [1.0]
+    assert rs.reward.evaluate(now, now2).tolist() == [-3.0]
 
 
 def test_counted_counts_separate_violations() -> None:
@@ -119,15 +120,24 @@ from mitlc.runtime import NetRuntime  # noqa: E402
 DT, STEPS = 0.03, 100
 
 
-def _returns(rs, x: np.ndarray) -> np.ndarray:
+def _rewards_and_first_violation(rs, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-step rewards (R, N) and the first step whose marking records a violation (N if none)."""
     rt = NetRuntime(rs)
+    watched = [i for i, p in enumerate(rs.net.places) if p.kind == "violation" and not p.name.startswith("p_ok_")]
     m = rt.reset(x[:, 0])
-    total = np.zeros(len(x))
+    rewards = np.zeros((len(x), STEPS))
+    first = np.full(len(x), STEPS)
     for k in range(STEPS):
         m_next = rt.step(m, x[:, k + 1], (k + 1) * DT)
-        total += rt.reward(m, m_next)
+        rewards[:, k] = rt.reward(m, m_next)
+        hit = (m_next[:, watched].sum(axis=1) > 0) & (first == STEPS)
+        first[hit] = k
         m = m_next
-    return total
+    return rewards, first
+
+
+def _returns(rs, x: np.ndarray) -> np.ndarray:
+    return _rewards_and_first_violation(rs, x)[0].sum(axis=1)
 
 
 def _traces(rng: np.random.Generator, q0: tuple[float, float], designed: list[np.ndarray], n: int = 150) -> np.ndarray:
@@ -172,14 +182,24 @@ ORDERING = [
 
 
 @pytest.mark.parametrize("name,formula,q0,designed", ORDERING, ids=[o[0] for o in ORDERING])
-def test_no_violating_trial_out_earns_a_satisfying_one(name, formula, q0, designed) -> None:
+def test_no_violating_continuation_out_earns_a_satisfying_one(name, formula, q0, designed) -> None:
     spec = load_spec(ROOT / "specs" / "pendulum" / f"{name}.mitl")
     rng = np.random.default_rng(7)
     x = _traces(rng, q0, designed)
     verdict = monitor(spec, x, DT, parse_formula(formula) if formula else None).satisfied
     assert verdict.any() and (~verdict).any(), "the sample must hold both kinds of trial"
-    returns = _returns(compile_spec(spec, CompileOptions(violations="permanent")), x)
-    assert returns[~verdict].max() < returns[verdict].min()
+    rs = compile_spec(spec, CompileOptions(violations="permanent"))
+    rewards, first = _rewards_and_first_violation(rs, x)
+    # the net records a violation exactly when the monitor finds one
+    np.testing.assert_array_equal(first < STEPS, ~verdict)
+    # before its first violation a trial earns more per step than the pinned reward ...
+    for i in range(len(x)):
+        assert (rewards[i, : first[i]] > rs.pinned).all()
+    # ... and from its first violation on, exactly the pinned reward
+    for i in np.flatnonzero(~verdict):
+        assert (rewards[i, first[i]:] == rs.pinned).all()
+        # so its rest earns less than the same stretch of any satisfying trial
+        assert rewards[i, first[i]:].sum() < rewards[verdict][:, first[i]:].sum(axis=1).min()
 
 
 def test_cutting_through_psi_pays_only_without_the_option() -> None:
@@ -213,5 +233,6 @@ def test_runtime_counts_violations_on_both_paths() -> None:
         assert rt.reward_code(rt.encode(m), rt.encode(m_next))[0] == rewards[-1]
         m = m_next
     assert m[0, count] == 2
-    # each entry into psi: base min(1*(0-1), 2*(0-1)) = -2 and the penalty 401
-    assert rewards == [-403.0, -1.0, -403.0, -1.0, 1.0]
+    # each entry into psi: base min(1*(0-1), 2*(0-1)) = -2 and the penalty c = 4 + 1
+    assert rs.penalty == 5.0
+    assert rewards == [-7.0, -1.0, -7.0, -1.0, 1.0]
