@@ -53,10 +53,9 @@ class CompileOptions:
 
     violations: str = "off"
     """``off``: the thesis's nets.  ``permanent``: an absorbing violated place per
-    safety or deadline part, and from a violation on the reward is pinned below
-    anything a trial without violations can earn.  ``counted``: safety parts
-    count their violations and each costs a one-time penalty (docs/semantics.md,
-    section 6)."""
+    safety or deadline part, and from a violation on every step costs enough that
+    it earns less than any violation-free step.  ``counted``: safety parts count
+    their violations and each costs that once (docs/semantics.md, section 6)."""
 
     @staticmethod
     def from_spec(spec: Spec, **overrides: str | None) -> "CompileOptions":
@@ -76,10 +75,8 @@ class RewardSystem:
     groups: tuple[tuple[str, ...], ...]
     options: CompileOptions
     penalty: float = 0.0
-    """``counted``: the one-time cost of each violation (0 otherwise)."""
-
-    pinned: float | None = None
-    """``permanent``: the reward of every step from the first violation on (None otherwise)."""
+    """``c``: with ``permanent`` subtracted on every step from the first violation on,
+    with ``counted`` once per violation; 0 with ``off``."""
 
     @property
     def atoms(self) -> tuple[str, ...]:
@@ -750,27 +747,46 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
     builder = _Builder(spec, options, formula)
     everything = builder._all() if builder.segments else frozenset()
     reward = builder.reward(formula, everything, under_g=False, conj=True)
-    penalty, pinned = 0.0, None
+    penalty = 0.0
     net, resolved = builder.assemble(reward)
     if builder.penalties:
-        lo, hi = _bounds_without_violation(builder, net, resolved)
+        # c: more than any step can earn above a violation-free step
+        lo_free, _ = _bounds_without_violation(builder, net, resolved)
+        _, hi = _bounds_all_steps(net, resolved)
+        penalty = hi - lo_free + 1.0
         if options.violations == "permanent":
-            # r' = (1 - v) r + v r_pin, v = 1 once any watched part is violated
-            pinned = lo - 1.0
+            # r' = r - c v, v = 1 once any watched part is violated (on every later step)
             marks = [_tokens([p]) for p in builder.penalties]
-            v = marks[0] if len(marks) == 1 else R.Max(tuple(marks))
-            reward = R.Sum((R.Prod((R.Sum((R.ONE, R.Neg(v))), reward)), R.scale(pinned, v)))
+            charge = marks[0] if len(marks) == 1 else R.Max(tuple(marks))
         else:
-            # r' = r - c * (new violations), c more than one step can gain
-            penalty = hi - lo + 1.0
+            # r' = r - c * (new violations)
             new = [R.Sum((_tokens([p]), R.Neg(_tokens([p], prev=True)))) for p in builder.penalties]
-            reward = R.Sum((reward, R.Neg(R.scale(penalty, new[0] if len(new) == 1 else R.Sum(tuple(new))))))
+            charge = new[0] if len(new) == 1 else R.Sum(tuple(new))
+        reward = R.Sum((reward, R.Neg(R.scale(penalty, charge))))
         resolved = _resolve(reward, {p.name: i for i, p in enumerate(net.places)})
-    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, pinned)
+    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty)
 
 
 MAX_PAIRS = 200_000
 """Most marking pairs enumerated to bound the reward of steps without a violation."""
+
+
+def _pairs(net: Net) -> tuple[np.ndarray, np.ndarray] | None:
+    """Every one-move step of the net as (M_k, M_k+1) arrays, or None if there are too many."""
+    sizes = [len(sub.places) ** 2 for sub in net.subnets]
+    if float(np.prod(sizes, dtype=float)) > MAX_PAIRS:
+        return None
+    pairs = list(net.step_pairs())
+    return np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])
+
+
+def _bounds_all_steps(net: Net, reward: R.RExpr) -> tuple[float, float]:
+    """Bounds of ``reward`` over every one-move step (interval bounds if there are too many)."""
+    pairs = _pairs(net)
+    if pairs is None:
+        return R.bounds(reward)
+    values = reward.evaluate(*pairs)
+    return float(values.min()), float(values.max())
 
 
 def _contains(outer: A.Interval, inner: A.Interval) -> bool:
@@ -789,14 +805,13 @@ def _bounds_without_violation(builder: "_Builder", net: Net, reward: R.RExpr) ->
     watch stayed quiet. Falls back to interval bounds of the whole tree when
     there are too many steps.
     """
-    sizes = [len(sub.places) ** 2 for sub in net.subnets]
-    if float(np.prod(sizes, dtype=float)) > MAX_PAIRS:
+    both = _pairs(net)
+    if both is None:
         return R.bounds(reward)
-    pairs = list(net.step_pairs())
-    prev = np.array([a for a, _ in pairs])
-    now = np.array([b for _, b in pairs])
+    prev, now = both
+    n = len(prev)
     idx = {p.name: i for i, p in enumerate(net.places)}
-    keep = np.ones(len(pairs), dtype=bool)
+    keep = np.ones(n, dtype=bool)
     for name in builder.penalties:  # at or after a violation (its reward is pinned or penalised)
         keep &= now[:, idx[name]] == 0
     truth = {a: now[:, [idx[n] for n in pos]].sum(axis=1) > 0 for a, (pos, _) in builder.where.items()}
@@ -810,9 +825,9 @@ def _bounds_without_violation(builder: "_Builder", net: Net, reward: R.RExpr) ->
             if net.place_index(tr.inputs[0]) != ok:
                 continue
             for term in tr.guard.terms:
-                sure = eval_state(term.state, truth) if term.state is not None else np.ones(len(pairs), bool)
+                sure = eval_state(term.state, truth) if term.state is not None else np.ones(n, bool)
                 if term.clock is not None:
-                    covered = np.zeros(len(pairs), dtype=bool)
+                    covered = np.zeros(n, dtype=bool)
                     for i, seg in segments.items():
                         if seg is not None and _contains(term.clock, seg):
                             covered |= now[:, idx[builder.segments[i]]] > 0

@@ -54,7 +54,6 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
         "normal_form": str(rs.normal_form),
         "options": {"conjunction": rs.options.conjunction, "violations": rs.options.violations},
         "penalty": rs.penalty,
-        "pinned": rs.pinned,
         "places": [
             {"name": p.name, "kind": p.kind, "subnet": p.subnet, "label": p.label} for p in net.places
         ],

@@ -140,12 +140,12 @@ def test_every_thesis_spec_rewards_as_the_runtime(spec_path: Path, violations: s
         assert rewards[k - 1] == float(rt.reward(M, M_next)[0])
         np.testing.assert_array_equal(infos[k]["marking"], M_next[0])
         M = M_next
-    if violations == "permanent":  # r' = r of the thesis's net until a violation, then the pinned reward
+    if violations == "permanent":  # r' = r of the thesis's net, less c on every step from a violation on
         off = random_rollout(wrapped(spec_path, verdict="off", truncate_at_horizon=True), seed=6, steps=60)[2]
         m = np.array([i["marking"] for i in infos])
         watched = [i for i, p in enumerate(rs.net.places) if p.name.startswith(("p_violated_", "p_late_", "p_failed_"))]
         violated = m[1:, watched].sum(axis=1) > 0
-        np.testing.assert_allclose(rewards, np.where(violated, rs.pinned, np.array(off)))
+        np.testing.assert_allclose(rewards, np.array(off) - rs.penalty * violated)
         assert violated.any()  # the random agent violates every spec at least once
 
 

@@ -43,8 +43,8 @@ def test_permanent_places_guards_and_penalty() -> None:
         ("p_violated_G_not_psi",): "psi",
     }
     assert {p.kind for p in net.places if "violated" in p.name or "p_ok" in p.name} == {"violation"}
-    # r in [-2, 2] per step: after a violation every step earns -2 - 1
-    assert rs.pinned == -3.0 and rs.penalty == 0.0
+    # r in [-2, 2] on any step: after a violation every step costs c = 2 - (-2) + 1
+    assert rs.penalty == 5.0
 
 
 def test_permanent_reward_by_hand() -> None:
@@ -53,13 +53,13 @@ def test_permanent_reward_by_hand() -> None:
     ok = ("p_ok_FG_kappa", "p_ok_G_not_psi")
     # before any violation: the thesis's reward, min((1+1)(1-0), (1+1)(1-0)) = 2 for staying in kappa
     assert rs.reward.evaluate(marking(net, "p_kappa", *ok), marking(net, "p_kappa", *ok)).tolist() == [2.0]
-    # entering psi from "none" violates G !psi: the step earns the pinned -3 (not min(-1, -2) = -2)
+    # entering psi from "none" violates G !psi: min((1+0)(0-1), (1+1)(0-1)) - 5 = -7
     prev = marking(net, "p_none_kappa_psi", *ok)
     now = marking(net, "p_psi", "p_ok_FG_kappa", "p_violated_G_not_psi")
-    assert rs.reward.evaluate(prev, now).tolist() == [-3.0]
-    # and so does every later step, even in kappa, where the thesis's reward would pay 1
+    assert rs.reward.evaluate(prev, now).tolist() == [-7.0]
+    # and every later step costs 5 too: reaching kappa pays 1 - 5, less than any violation-free step
     now2 = marking(net, "p_kappa", "p_ok_FG_kappa", "p_violated_G_not_psi")
-    assert rs.reward.evaluate(now, now2).tolist() == [-3.0]
+    assert rs.reward.evaluate(now, now2).tolist() == [-4.0]
 
 
 def test_counted_counts_separate_violations() -> None:
@@ -192,12 +192,10 @@ def test_no_violating_continuation_out_earns_a_satisfying_one(name, formula, q0,
     rewards, first = _rewards_and_first_violation(rs, x)
     # the net records a violation exactly when the monitor finds one
     np.testing.assert_array_equal(first < STEPS, ~verdict)
-    # before its first violation a trial earns more per step than the pinned reward ...
-    for i in range(len(x)):
-        assert (rewards[i, : first[i]] > rs.pinned).all()
-    # ... and from its first violation on, exactly the pinned reward
+    # every step from the first violation on earns less than any step before a violation
+    before = np.concatenate([rewards[i, : first[i]] for i in range(len(x))])
     for i in np.flatnonzero(~verdict):
-        assert (rewards[i, first[i]:] == rs.pinned).all()
+        assert rewards[i, first[i]:].max() < before.min()
         # so its rest earns less than the same stretch of any satisfying trial
         assert rewards[i, first[i]:].sum() < rewards[verdict][:, first[i]:].sum(axis=1).min()
 
