@@ -120,7 +120,7 @@ def main() -> None:
         "final greedy rollout satisfies `F G kappa & G !psi` by the monitor (the weight does not change what "
         "is checked). **Runs entering psi**: failing runs the monitor blames on `!psi`, summed over the "
         f"{n_runs} runs of the three seeds. **Final return**: mean over runs of the last 10 trials' returns; "
-        "it scales with the weight and includes C, so it compares only within one row.",
+        "it scales with the weight and includes the violation cost, so it compares only within one row.",
         "",
         "![success rate over the weight of G !psi and the violation mode](figures/sweep_p2_weights.png)",
         "",
@@ -151,20 +151,18 @@ def main() -> None:
 READING = [
     "With the thesis's reward, equal weights (weight 1, the case of Figure 4-6) reproduce the thesis's",
     "finding: some runs learn to cut through psi (the thesis's explanation: one entry penalty is cheaper",
-    "than the reward of arriving early). From weight 2 on, no run of the 90 enters psi and every run at weights 2, 5 and 10",
-    "satisfies the spec; at 20 a few runs no longer end in kappa (blamed on `F G kappa`). For 3 s trials",
-    "the shipped weight of 10 sits in the middle of a wide safe range.",
+    "than the reward of arriving early). From weight 2 on no run of the 90 enters psi, and every run at",
+    "weights 2, 5 and 10 satisfies the spec; at 20 a few runs no longer end in kappa. For 3 s trials the",
+    "shipped weight of 10 sits in the middle of a wide safe range.",
     "",
-    "The violation-aware reward does worse at every weight here, and worse the larger the weight: its",
-    "penalty C = N (r_max - r_min) + 1 grows with the weight (401 at weight 1, 4,201 at weight 20), and",
-    "most of its failing runs do not end in kappa rather than enter psi (until weight 20, where psi",
-    "entries dominate). The guarantee of semantics.md section 6 orders the *returns* of violating and",
-    "satisfying trials; it does not make them easier to learn: with the trainer's fixed learning rates",
-    "(Table 4-4), the learner now sees one-time penalties of hundreds to thousands beside per-step rewards",
-    "between -2 w and 2 (w the weight), in 500 trials. This sweep does not say whether more trials, a",
-    "smaller penalty or smaller learning rates would recover the thesis reward's success rates; a sweep",
-    "such as `--grid option.violations=permanent --grid alpha_c=0.3,0.03 --grid alpha_a=0.1,0.01` (or",
-    "another `--trials`) would.",
+    "The violation-aware reward takes the incentive to cut through psi away at every weight (at most one",
+    "run of 90 enters psi), but in 500 trials fewer runs learn the swing-up: most of its failing runs do",
+    "not end in kappa (`F G kappa`). From the first violation on, every step costs c = r_max - r_floor + 1",
+    "= 5 whatever the weight (docs/semantics.md section 6), so an exploratory entry into psi early in a",
+    "trial costs the rest of that trial, and the learner turns timid near the start, which lies next to",
+    "psi. The guarantee is a property of the reward; how fast SACPN learns under it is what this table",
+    "measures. A sweep such as `--grid option.violations=permanent --grid sigma=1,3,5` (or more",
+    "`--trials`) is the next experiment.",
 ]
 
 
@@ -175,9 +173,9 @@ def check_reading(success: dict, entering: dict) -> None:
         "weight 1, off: some runs enter psi": entering[("1", "off")] > 0,
         "weights 2-20, off: no run enters psi": all(entering[(w, "off")] == 0 for w in ws[1:]),
         "weights 2, 5, 10, off: success 1": all(success[(w, "off")] == 1.0 for w in ("2", "5", "10")),
+        "weight 20, off: success below 1": success[("20", "off")] < 1.0,
         "permanent below off at every weight": all(success[(w, "permanent")] < success[(w, "off")] for w in ws),
-        "permanent falls with the weight": all(success[(a, "permanent")] >= success[(b, "permanent")]
-                                               for a, b in zip(ws, ws[1:])),
+        "permanent: at most one run enters psi per weight": all(entering[(w, "permanent")] <= 1 for w in ws),
     }
     wrong = [k for k, ok in claims.items() if not ok]
     if wrong:
