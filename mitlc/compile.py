@@ -660,20 +660,22 @@ class _Builder:
         self.violation_nets.append(sub)
 
     def _late(self, key: tuple, f: A.Eventually) -> None:
-        """Give an eventually net a ``late`` place: the deadline passed before it was met."""
+        """Give an eventually net a ``late`` place: the deadline (or the trial) passed before it was met."""
         if self.options.violations == "off" or ("late",) + key in self.cache:
             return
-        if not math.isinf(f.interval.hi):
-            deadline = A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed)
-        elif self.end is not None:
-            deadline = A.Interval(self.end, math.inf)
-        else:
+        terms = []
+        if not math.isinf(f.interval.hi) and (self.end is None or f.interval.hi < self.end):
+            terms.append(GuardTerm(clock=A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed)))
+        elif self.end is not None:  # still pending at the last sample (done comes first if met there)
+            terms.append(GuardTerm(clock=A.Interval(self.end, math.inf)))
+        if not terms:
             return
+        deadline = Guard(tuple(terms))
         sub = next(s for s in self.timing if s.places and s.places[0][0] == self.cache[key][0])
         label = sub.places[0][1].split(",", 1)[1]
         late = self._unique(f"p_late_{label}")
         sub.places.append((late, f"late,{label}"))
-        sub.arcs.append((0, len(sub.places) - 1, Guard.clock(deadline)))
+        sub.arcs.append((0, len(sub.places) - 1, deadline))
         self.penalties.append(late)
         self.cache[("late",) + key] = [late]
 
