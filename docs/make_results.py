@@ -250,6 +250,11 @@ def write_doc(rows, comparisons, total: float) -> None:
         "why both parts are the default.",
     ]
     lines += ["", "Per-seed numbers in machine-readable form: [figures/results.json](figures/results.json).", ""]
+    lines += ["## The weight sweep of Figure 4-6", "",
+              "Problem 2 with the weight of `G !psi` in {1, 2, 5, 10, 20}, 3 seeds, with and without "
+              "`--violations permanent`, run by `mitlc sweep` (`python docs/make_sweep_results.py`): the table "
+              "and its reading are in [sweep_results.md](sweep_results.md).", "",
+              "![success rate over the psi weight](figures/sweep_p2_weights.png)", ""]
     page = ROOT / "docs" / "results.md"
     old = page.read_text(encoding="utf-8") if page.is_file() else ""
     begin, end = "<!-- violations:begin -->", "<!-- violations:end -->"
