@@ -774,6 +774,7 @@ def compose(
         raise TrainingError(
             f"no learned policy for mode(s) {', '.join(missing)} of the combined automaton",
             hint="train a spec with that criterion, or pass an assignment",
+            file=spec.path,
         )
     for m, (lrn, src) in chosen.items():
         if src not in lrn.automaton.names:

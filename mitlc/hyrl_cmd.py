@@ -15,7 +15,9 @@ with the classical-criteria checker (:mod:`mitlc.criteria`) and writes, to
 * ``learning_curve.png`` and ``rollout.png`` (position and input with the
   mode as background colour, like Figure 3-7).
 
-:func:`automaton` is the ``mitlc automaton SPEC`` click command.
+:func:`automaton` is the ``mitlc automaton SPEC`` click command; :func:`compose_cmd`
+(``mitlc compose SPEC --policy DIR --policy DIR``) runs a combined automaton
+with policies trained separately (section 3-3-3).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from mitlc.errors import InputError, TrainingError
 __all__ = [
     "train_hybrid_cli",
     "automaton",
+    "compose_cmd",
     "rollout_mode_figure",
     "metrics_of",
     "AUTOMATON_FORMATS",
@@ -310,5 +313,51 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
             click.echo(text, nl=False)
         else:
             cli.atomic_write(output, text)
+
+    run()
+
+
+# ---------------------------------------------------------------- mitlc compose
+
+
+@click.command("compose")
+@click.argument("spec", type=click.Path(dir_okay=False))
+@click.option("--policy", "policy_dirs", type=click.Path(file_okay=False, exists=True), multiple=True, required=True,
+              help="Directory written by 'mitlc train' on a spec with one of SPEC's criteria (repeat).")
+@click.option("--initial-states", "n_init", type=click.IntRange(1, 10000), default=50, show_default=True,
+              help="Initial positions, evenly spaced over SPEC's initial range.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
+              help="Write rollouts of run 0 with the mode as background colour here (PNG).")
+def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None) -> None:
+    """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
+    cli = _cli()
+
+    @cli.handle_errors
+    def run() -> None:
+        from mitlc.hyrl import compose, load_learner
+        from mitlc.parse import load_spec
+        from mitlc.plots import png_bytes
+
+        s = load_spec(spec)
+        learners = []
+        for d in policy_dirs:
+            ckpt = Path(d) / PARAMS
+            if not ckpt.is_file():
+                raise InputError(f"no {PARAMS} in {d} (train first with 'mitlc train --out DIR')", file=str(d))
+            learners.append(load_learner(ckpt))
+        ctl = compose(s, learners)
+        for mode, src in ctl.describe().items():
+            click.echo(f"mode {mode:<5} policy {src}")
+        ev = ctl.evaluate(n_init)
+        for r in range(ctl.runs):
+            click.echo(f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
+                       f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})")
+        click.echo(f"success rate {ev.success_rate():.2f} ({ctl.runs} runs, all of {n_init} initial states); "
+                   f"states {ev.state_rate():.2f}")
+        if plot_path is not None:
+            rows = _example_rows(ev)
+            fig = rollout_mode_figure(ev.rollout, ctl.automaton, rows, float(ctl.params["u_max"]),
+                                      f"{Path(spec).stem}: composed policies, run 0")
+            cli.atomic_write(plot_path, png_bytes(fig))
 
     run()

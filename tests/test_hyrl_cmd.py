@@ -65,3 +65,24 @@ def test_train_hybrid_cli_resumes_to_the_same_numbers(spec_dir, tmp_path):
     resumed = train_hybrid_cli(None, 0, 4, 0, tmp_path / "b", progress=False, n_init=3, plots=False,
                                resume=tmp_path / "b")
     assert resumed["trials"] == 4 and resumed["returns"] == straight["returns"]
+
+
+def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
+    from mitlc.hyrl_cmd import compose_cmd
+
+    d = spec_dir / "mass_damper"
+    settings = HyrlSettings(trial_s=0.9)
+    train_hybrid_cli(d / "rise_time.mitl", 2, 2, 0, tmp_path / "rise", progress=False, settings=settings,
+                     n_init=2, plots=False)
+    train_hybrid_cli(d / "overshoot.mitl", 2, 2, 0, tmp_path / "over", progress=False, settings=settings,
+                     n_init=2, plots=False)
+    plot = tmp_path / "composed.png"
+    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
+                                           "--policy", str(tmp_path / "over"), "--initial-states", "4",
+                                           "--plot", str(plot)])
+    assert res.exit_code == 0, res.output
+    assert "mode E_Mp  policy overshoot:E_Mp" in res.output and "mode E_tr  policy rise_time:E_tr" in res.output
+    assert res.output.count("initial states succeed") == 2 and plot.read_bytes()[:4] == b"\x89PNG"
+    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "over")])
+    assert res.exit_code == 2
+    assert "overshoot_rise_time.mitl: error: no learned policy for mode(s) I, E_tr" in res.output
