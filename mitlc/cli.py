@@ -67,9 +67,9 @@ def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None
 # Commands from other stages register here, one line each.
 # (keep this block: helpers add `main.add_command(...)` lines below)
 from mitlc.check_cmd import check  # noqa: E402
+from mitlc.hyrl_cmd import automaton, compose_cmd  # noqa: E402
+from mitlc.sweep_cmd import sweep  # noqa: E402
 from mitlc.train_cmd import simulate, train  # noqa: E402
 
-main.add_command(check)
-main.add_command(train)
-main.add_command(simulate)
-main.add_command(__import__("mitlc.sweep_cmd", fromlist=["sweep"]).sweep)
+for command in (check, train, simulate, sweep, automaton, compose_cmd):
+    main.add_command(command)

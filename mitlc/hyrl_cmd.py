@@ -30,6 +30,7 @@ from typing import Any, Sequence
 import click
 import numpy as np
 
+from mitlc.cliutil import atomic_write, handle_errors
 from mitlc.errors import InputError, TrainingError
 
 __all__ = [
@@ -47,13 +48,6 @@ AUTOMATON_FORMATS = ("text", "json", "dot", "svg", "png")
 SMALL_STEP = 0.1
 """Steps smaller than this (|q0 - setpoint|) are reported apart: the thesis's overshoot
 result holds for |q0| >= 0.1 only (section 3-3-1)."""
-
-
-def _cli():
-    # mitlc.cli imports the command modules to register them: import it lazily.
-    from mitlc import cli
-
-    return cli
 
 
 def _load_spec(spec: Any):
@@ -215,7 +209,6 @@ def train_hybrid_cli(
     from mitlc.hyrl import HybridLearner, HyrlSettings, evaluate, load_learner
     from mitlc.plots import learning_curve, png_bytes
 
-    cli = _cli()
     if resume is not None:
         ckpt = Path(resume) / PARAMS
         if not ckpt.is_file():
@@ -248,23 +241,23 @@ def train_hybrid_cli(
     finally:
         bar.close()
     wall = learner.wall_s  # training time, summed over resumed sessions
-    cli.atomic_write(out / PARAMS, learner.to_bytes())
+    atomic_write(out / PARAMS, learner.to_bytes())
     name = Path(s.path or "spec").stem
     if learner.trial > 0:
         ev = evaluate(learner, n_init)
         metrics = metrics_of(learner, ev, wall)
         if plots:
-            cli.atomic_write(out / "learning_curve.png",
+            atomic_write(out / "learning_curve.png",
                              png_bytes(learning_curve(learner.returns, title=f"{name}: HyRL, {learner.runs} runs")))
             fig = rollout_mode_figure(
                 ev.rollout, learner.automaton, _example_rows(ev), learner.u_max,
                 f"{name}: greedy policy of run 0 (background: mode)",
             )
-            cli.atomic_write(out / "rollout.png", png_bytes(fig))
+            atomic_write(out / "rollout.png", png_bytes(fig))
     else:
         metrics = {"spec": s.path, "runs": runs, "trials": 0, "wall_s": round(wall, 3), "returns": []}
     metrics["interrupted"] = interrupted
-    cli.atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
+    atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
     if interrupted:
         click.echo(f"interrupted after trial {learner.trial}; checkpoint in {out / PARAMS}\n"
                    f"continue with: mitlc train --resume {out} --trials {trials}", err=True)
@@ -291,9 +284,8 @@ def train_hybrid_cli(
               help="Write to this file (atomically) instead of standard output.")
 def automaton(spec: str, fmt: str, output: str | None) -> None:
     """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B)."""
-    cli = _cli()
 
-    @cli.handle_errors
+    @handle_errors
     def run() -> None:
         from mitlc.automaton import compile_requirements, render_bytes
         from mitlc.parse import load_spec
@@ -305,14 +297,14 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
         if fmt in ("svg", "png"):
             if output is None:
                 raise InputError(f"--format {fmt} needs -o FILE", file="--output")
-            cli.atomic_write(output, render_bytes(h, fmt))
+            atomic_write(output, render_bytes(h, fmt))
             return
         text = {"text": lambda: str(h) + "\n", "json": lambda: h.to_json() + "\n",
                 "dot": lambda: h.to_digraph().source}[fmt]()
         if output is None:
             click.echo(text, nl=False)
         else:
-            cli.atomic_write(output, text)
+            atomic_write(output, text)
 
     run()
 
@@ -330,9 +322,8 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
               help="Write rollouts of run 0 with the mode as background colour here (PNG).")
 def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
-    cli = _cli()
 
-    @cli.handle_errors
+    @handle_errors
     def run() -> None:
         from mitlc.hyrl import compose, load_learner
         from mitlc.parse import load_spec
@@ -358,6 +349,6 @@ def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path:
             rows = _example_rows(ev)
             fig = rollout_mode_figure(ev.rollout, ctl.automaton, rows, float(ctl.params["u_max"]),
                                       f"{Path(spec).stem}: composed policies, run 0")
-            cli.atomic_write(plot_path, png_bytes(fig))
+            atomic_write(plot_path, png_bytes(fig))
 
     run()

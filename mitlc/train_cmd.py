@@ -193,6 +193,14 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
         raise InputError(f"the spec is for plant '{spec.plant_name}', not '{plant_name}'", file=spec.path)
     for w in spec.warnings:
         click.echo(w, err=True)
+    if spec.formula is None and spec.requirements:  # classical criteria: HyRL (docs/hyrl.md)
+        from mitlc.hyrl import HyrlSettings
+        from mitlc.hyrl_cmd import train_hybrid_cli
+
+        overrides = {k: v for k, v in (("sigma", sigma), ("saturation", saturation)) if v is not None}
+        train_hybrid_cli(spec, runs, trials, seed, out, progress=not quiet, settings=HyrlSettings(**overrides),
+                         plots=not no_plots, resume=resume_dir)
+        return
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation)
     rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
     agent = Sacpn(rs, settings, runs=runs, seed=seed)
