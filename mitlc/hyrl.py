@@ -39,8 +39,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,6 +49,7 @@ import numpy as np
 from mitlc.automaton import HybridAutomaton, RewardConstants, compile_requirements
 from mitlc.criteria import Verdict, check
 from mitlc.errors import InputError, TrainingError
+from mitlc.fileio import atomic_write
 from mitlc.plants import Plant
 from mitlc.spec import Spec
 
@@ -541,16 +540,7 @@ class HybridLearner:
 
     def save(self, path: str | Path) -> None:
         """Write the learner's state to ``path`` (.npz) atomically."""
-        path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent or Path("."))
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(self.to_bytes())
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        atomic_write(path, self.to_bytes())
 
 
 def _json_default(o):

@@ -45,7 +45,6 @@ import json
 import math
 import os
 import socket
-import tempfile
 import time
 import typing
 from collections import Counter, deque
@@ -55,6 +54,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from mitlc import ast as A
 from mitlc.errors import InputError, MitlError, TrainingError
+from mitlc.fileio import atomic_write
 from mitlc.spec import OPTIONS, Spec
 
 __all__ = [
@@ -81,7 +81,6 @@ __all__ = [
     "heatmap_figure",
     "format_value",
     "default_workers",
-    "atomic_write",
 ]
 
 RESULTS_JSON = "results.json"
@@ -565,29 +564,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
 
 
 # ---------------------------------------------------------------- results on disk
-
-
-def atomic_write(path: str | Path, data: str | bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory, fsync and rename.
-
-    The file gets the usual permissions (``0o666`` less the umask).
-    """
-    path = Path(path)
-    payload = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.fchmod(fd, 0o666 & ~umask)
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(payload)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+# (atomic_write: mitlc.fileio, temp file + fsync + rename)
 
 
 CSV_METRICS = ("success_rate", "final_return", "greedy_return", "failing", "wall_s", "cpu_s", "error", "host")
