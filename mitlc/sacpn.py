@@ -581,7 +581,8 @@ class Sacpn:
         off = offset[:, 0] if one else offset
         off_c = offset[:, 0] if one_c else offset
         flat = mk[code] + off
-        flat_c = mk_c[code] + off_c
+        same = KC == K  # no violation sub-nets: the critic's rows are the actor's
+        flat_c = flat if same else mk_c[code] + off_c
         phi = features(x)
         phi_next = np.empty_like(phi)
         ret = np.zeros(R)
@@ -624,8 +625,11 @@ class Sacpn:
                 features(x, out=phi_next)
                 flat1 = mk[code1]
                 flat1 += off
-                flat1_c = mk_c[code1]
-                flat1_c += off_c
+                if same:
+                    flat1_c = flat1
+                else:
+                    flat1_c = mk_c[code1]
+                    flat1_c += off_c
                 # TD error with Theta_k
                 dot(th_f[flat_c], phi, v0, one_c)
                 multiply(v0, -inv_kc, out=delta)
