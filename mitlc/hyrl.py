@@ -36,7 +36,6 @@ the bit.  Where the thesis is silent the choices are fields of
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import time
@@ -50,6 +49,9 @@ from mitlc.automaton import HybridAutomaton, RewardConstants, compile_requiremen
 from mitlc.criteria import Verdict, check
 from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import atomic_write
+from mitlc.settings import check_fraction, check_non_negative, json_default
+from mitlc.settings import from_dict as settings_from_dict
+from mitlc.settings import to_dict as settings_to_dict
 from mitlc.plants import Plant
 from mitlc.spec import Spec
 
@@ -125,30 +127,19 @@ class HyrlSettings:
     """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not a terminal state."""
 
     def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
-        d["rbf"] = list(self.rbf)
-        return d
+        return settings_to_dict(self)
 
     @staticmethod
     def from_dict(d: Mapping) -> "HyrlSettings":
-        d = dict(d)
-        if "rbf" in d:
-            d["rbf"] = tuple(int(n) for n in d["rbf"])
-        known = {f.name for f in dataclasses.fields(HyrlSettings)}
-        return HyrlSettings(**{k: v for k, v in d.items() if k in known})
+        return settings_from_dict(HyrlSettings, d)
 
     def check(self) -> None:
         if self.saturation not in ("applied", "none"):
             raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
-        for name in ("gamma", "lam"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise TrainingError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        check_fraction(self, ("gamma", "lam"))
         if not 0.0 < self.sigma_decay <= 1.0:
             raise TrainingError(f"sigma_decay must be in (0, 1], got {self.sigma_decay}")
-        for name in ("alpha_c", "alpha_a", "rbf_width", "sigma", "sigma_min"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise TrainingError(f"{name} must be a non-negative number, got {v}")
+        check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma", "sigma_min"))
         if len(self.rbf) != 3 or any(int(n) < 1 for n in self.rbf) or self.rbf_clock < 1:
             raise TrainingError(f"rbf needs three positive counts (q, qdot, q0) and rbf_clock >= 1, got {self.rbf}")
         for name in ("trial_s", "dt"):
@@ -507,7 +498,7 @@ class HybridLearner:
             "xi": self.xi,
             "theta": self.theta,
             "returns": self.returns,
-            "meta": np.array(json.dumps(meta, default=_json_default)),
+            "meta": np.array(json.dumps(meta, default=json_default)),
         }
 
     def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
@@ -543,10 +534,6 @@ class HybridLearner:
         atomic_write(path, self.to_bytes())
 
 
-def _json_default(o):
-    if isinstance(o, np.integer):
-        return int(o)
-    raise TypeError(type(o).__name__)
 
 
 def load_learner(path: str | Path) -> HybridLearner:

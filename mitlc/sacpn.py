@@ -43,7 +43,6 @@ the reasons):
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
@@ -55,6 +54,9 @@ import numpy as np
 from mitlc.compile import RewardSystem
 from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import save_npz
+from mitlc.settings import check_fraction, check_non_negative, json_default
+from mitlc.settings import from_dict as settings_from_dict
+from mitlc.settings import to_dict as settings_to_dict
 from mitlc.plants import Plant
 from mitlc.runtime import NetRuntime
 
@@ -114,32 +116,19 @@ class SacpnSettings:
     """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not as a terminal state."""
 
     def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
-        d["rbf"] = list(self.rbf)
-        d["feature_bounds"] = [list(b) for b in self.feature_bounds]
-        return d
+        return settings_to_dict(self)
 
     @staticmethod
     def from_dict(d: Mapping) -> "SacpnSettings":
-        d = dict(d)
-        if "rbf" in d:
-            d["rbf"] = tuple(int(n) for n in d["rbf"])
-        if "feature_bounds" in d:
-            d["feature_bounds"] = tuple((str(n), float(lo), float(hi)) for n, lo, hi in d["feature_bounds"])
-        known = {f.name for f in dataclasses.fields(SacpnSettings)}
-        return SacpnSettings(**{k: v for k, v in d.items() if k in known})
+        return settings_from_dict(SacpnSettings, d)
 
     def check(self) -> None:
         if self.mask not in ("current", "next"):
             raise TrainingError(f"unknown mask '{self.mask}' (current or next)")
         if self.saturation not in ("applied", "none"):
             raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
-        for name in ("gamma", "lam"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise TrainingError(f"{name} must be in [0, 1], got {getattr(self, name)}")
-        for name in ("alpha_c", "alpha_a", "rbf_width", "sigma_frac"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise TrainingError(f"{name} must be a non-negative number, got {getattr(self, name)}")
+        check_fraction(self, ("gamma", "lam"))
+        check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma_frac"))
         if any(n < 1 for n in self.rbf):
             raise TrainingError("rbf needs at least one centre per variable")
 
@@ -726,7 +715,7 @@ class Sacpn:
             "xi": self.xi,
             "theta": self.theta,
             "returns": self.returns,
-            "meta": np.array(json.dumps(meta, default=_json_int)),
+            "meta": np.array(json.dumps(meta, default=json_default)),
         }
 
     def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
@@ -769,7 +758,3 @@ def read_meta(path: str | Path) -> dict:
         raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
 
 
-def _json_int(o):
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    raise TypeError(type(o).__name__)
