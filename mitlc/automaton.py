@@ -236,30 +236,27 @@ def _wrap(g: Guard) -> str:
     return f"({g})" if isinstance(g, (AllOf, AnyOf)) and len(g.args) > 1 else str(g)
 
 
-def all_of(*gs: Guard) -> Guard:
-    """Conjunction, flattened: ``TRUE`` parts dropped, any ``FALSE`` part makes ``FALSE``."""
+def _join(cls: type, absorbing: Guard, gs: tuple[Guard, ...]) -> Guard:
+    """``cls`` (AllOf or AnyOf) of ``gs``, flattened and deduplicated; ``absorbing`` decides it at once."""
     out: list[Guard] = []
     for g in gs:
-        if isinstance(g, AllOf):
-            out.extend(a for a in g.args if a not in out)
-        elif g == FALSE:
-            return FALSE
+        if isinstance(g, cls):
+            out.extend(a for a in g.args if a not in out)  # type: ignore[attr-defined]
+        elif g == absorbing:
+            return absorbing
         elif g not in out:
             out.append(g)
-    return out[0] if len(out) == 1 else AllOf(tuple(out))
+    return out[0] if len(out) == 1 else cls(tuple(out))
+
+
+def all_of(*gs: Guard) -> Guard:
+    """Conjunction, flattened: ``TRUE`` parts dropped, any ``FALSE`` part makes ``FALSE``."""
+    return _join(AllOf, FALSE, gs)
 
 
 def any_of(*gs: Guard) -> Guard:
     """Disjunction, flattened: ``FALSE`` parts dropped, any ``TRUE`` part makes ``TRUE``."""
-    out: list[Guard] = []
-    for g in gs:
-        if isinstance(g, AnyOf):
-            out.extend(a for a in g.args if a not in out)
-        elif g == TRUE:
-            return TRUE
-        elif g not in out:
-            out.append(g)
-    return out[0] if len(out) == 1 else AnyOf(tuple(out))
+    return _join(AnyOf, TRUE, gs)
 
 
 def negate(g: Guard) -> Guard:

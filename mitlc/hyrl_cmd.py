@@ -282,31 +282,27 @@ def train_hybrid_cli(
               help="What to write: a readable summary, JSON, Graphviz DOT or a rendered picture.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Write to this file (atomically) instead of standard output.")
+@handle_errors
 def automaton(spec: str, fmt: str, output: str | None) -> None:
     """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B)."""
+    from mitlc.automaton import compile_requirements, render_bytes
+    from mitlc.parse import load_spec
 
-    @handle_errors
-    def run() -> None:
-        from mitlc.automaton import compile_requirements, render_bytes
-        from mitlc.parse import load_spec
-
-        s = load_spec(spec)
-        for w in s.warnings:
-            click.echo(w, err=True)
-        h = compile_requirements(s)
-        if fmt in ("svg", "png"):
-            if output is None:
-                raise InputError(f"--format {fmt} needs -o FILE", file="--output")
-            atomic_write(output, render_bytes(h, fmt))
-            return
-        text = {"text": lambda: str(h) + "\n", "json": lambda: h.to_json() + "\n",
-                "dot": lambda: h.to_digraph().source}[fmt]()
+    s = load_spec(spec)
+    for w in s.warnings:
+        click.echo(w, err=True)
+    h = compile_requirements(s)
+    if fmt in ("svg", "png"):
         if output is None:
-            click.echo(text, nl=False)
-        else:
-            atomic_write(output, text)
-
-    run()
+            raise InputError(f"--format {fmt} needs -o FILE", file="--output")
+        atomic_write(output, render_bytes(h, fmt))
+        return
+    text = {"text": lambda: str(h) + "\n", "json": lambda: h.to_json() + "\n",
+            "dot": lambda: h.to_digraph().source}[fmt]()
+    if output is None:
+        click.echo(text, nl=False)
+    else:
+        atomic_write(output, text)
 
 
 # ---------------------------------------------------------------- mitlc compose
@@ -320,35 +316,31 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
               help="Initial positions, evenly spaced over SPEC's initial range.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Write rollouts of run 0 with the mode as background colour here (PNG).")
+@handle_errors
 def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
+    from mitlc.hyrl import compose, load_learner
+    from mitlc.parse import load_spec
+    from mitlc.plots import png_bytes
 
-    @handle_errors
-    def run() -> None:
-        from mitlc.hyrl import compose, load_learner
-        from mitlc.parse import load_spec
-        from mitlc.plots import png_bytes
-
-        s = load_spec(spec)
-        learners = []
-        for d in policy_dirs:
-            ckpt = Path(d) / PARAMS
-            if not ckpt.is_file():
-                raise InputError(f"no {PARAMS} in {d} (train first with 'mitlc train --out DIR')", file=str(d))
-            learners.append(load_learner(ckpt))
-        ctl = compose(s, learners)
-        for mode, src in ctl.describe().items():
-            click.echo(f"mode {mode:<5} policy {src}")
-        ev = ctl.evaluate(n_init)
-        for r in range(ctl.runs):
-            click.echo(f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
-                       f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})")
-        click.echo(f"success rate {ev.success_rate():.2f} ({ctl.runs} runs, all of {n_init} initial states); "
-                   f"states {ev.state_rate():.2f}")
-        if plot_path is not None:
-            rows = _example_rows(ev)
-            fig = rollout_mode_figure(ev.rollout, ctl.automaton, rows, float(ctl.params["u_max"]),
-                                      f"{Path(spec).stem}: composed policies, run 0")
-            atomic_write(plot_path, png_bytes(fig))
-
-    run()
+    s = load_spec(spec)
+    learners = []
+    for d in policy_dirs:
+        ckpt = Path(d) / PARAMS
+        if not ckpt.is_file():
+            raise InputError(f"no {PARAMS} in {d} (train first with 'mitlc train --out DIR')", file=str(d))
+        learners.append(load_learner(ckpt))
+    ctl = compose(s, learners)
+    for mode, src in ctl.describe().items():
+        click.echo(f"mode {mode:<5} policy {src}")
+    ev = ctl.evaluate(n_init)
+    for r in range(ctl.runs):
+        click.echo(f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
+                   f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})")
+    click.echo(f"success rate {ev.success_rate():.2f} ({ctl.runs} runs, all of {n_init} initial states); "
+               f"states {ev.state_rate():.2f}")
+    if plot_path is not None:
+        rows = _example_rows(ev)
+        fig = rollout_mode_figure(ev.rollout, ctl.automaton, rows, float(ctl.params["u_max"]),
+                                  f"{Path(spec).stem}: composed policies, run 0")
+        atomic_write(plot_path, png_bytes(fig))
