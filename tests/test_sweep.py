@@ -45,25 +45,8 @@ from mitlc.sweep import (
 ROOT = Path(__file__).resolve().parent.parent
 P2 = ROOT / "specs" / "pendulum" / "p2_avoid.mitl"
 
-# Problem 2 with a 1 s trial: a task of 2 runs x 4 trials takes milliseconds.
-SHORT = """\
-plant pendulum(u_max = 10)
-init q in [2.4, pi], qdot = 0
-horizon 1
-prop kappa = abs(q) < 0.3
-prop psi   = 0.3 < q < pi/2 + 0.5
-formula F G kappa & 10 * G !psi
-"""
-
 GRID_2X2 = ("sigma=1,3", "weight.psi=1,10")
 METRICS = ("success_rate", "final_return", "greedy_return", "error")
-
-
-@pytest.fixture
-def short_spec(tmp_path):
-    p = tmp_path / "p2_short.mitl"
-    p.write_text(SHORT)
-    return p
 
 
 def run(*args):
@@ -223,7 +206,7 @@ def test_run_task_is_the_trainer_and_the_monitor(short_spec):
     plan = plan_sweep(load_spec(short_spec), ["sigma=2", "weight.psi=3", "option.violations=permanent"],
                       [5], runs=3, trials=6)
     record = run_task(plan.tasks[0].payload)
-    spec = parse_spec(SHORT.replace("10 * G !psi", "3 * G !psi"))
+    spec = parse_spec(short_spec.read_text().replace("10 * G !psi", "3 * G !psi"))
     agent = Sacpn(compile_spec(spec, CompileOptions(violations="permanent")), SacpnSettings(sigma=2.0),
                   runs=3, seed=5)
     agent.train(6)

@@ -10,30 +10,13 @@ from click.testing import CliRunner
 
 from mitlc.cli import main
 
-SPEC = """
-plant pendulum(u_max = 10)
-init q in [2.4, pi], qdot = 0
-horizon 1
-prop kappa = abs(q) < 0.3
-prop psi   = 0.3 < q < pi/2 + 0.5
-formula F G kappa & 10 * G !psi
-"""
-
-
-@pytest.fixture
-def spec_file(tmp_path):
-    p = tmp_path / "p2.mitl"
-    p.write_text(SPEC)
-    return p
-
-
 def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
 
 
-def test_train_writes_everything(spec_file, tmp_path):
+def test_train_writes_everything(short_spec, tmp_path):
     out = tmp_path / "out"
-    res = run("train", "--plant", "pendulum", "--spec", spec_file, "--runs", 3, "--trials", 4, "--out", out, "-q")
+    res = run("train", "--plant", "pendulum", "--spec", short_spec, "--runs", 3, "--trials", 4, "--out", out, "-q")
     assert res.exit_code == 0, res.output
     assert "success rate" in res.output
     for name in ("metrics.json", "params.npz", "learning_curve.png", "rollout.png"):
@@ -45,9 +28,9 @@ def test_train_writes_everything(spec_file, tmp_path):
     assert not list(out.glob(".*"))  # no temporary files left
 
 
-def test_same_seed_same_returns_and_resume(spec_file, tmp_path):
+def test_same_seed_same_returns_and_resume(short_spec, tmp_path):
     a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
-    common = ("--spec", spec_file, "--runs", 2, "--seed", 3, "-q", "--no-plots")
+    common = ("--spec", short_spec, "--runs", 2, "--seed", 3, "-q", "--no-plots")
     assert run("train", *common, "--trials", 6, "--out", a).exit_code == 0
     assert run("train", *common, "--trials", 6, "--out", b).exit_code == 0
     ra = json.loads((a / "metrics.json").read_text())["returns"]
@@ -61,11 +44,11 @@ def test_same_seed_same_returns_and_resume(spec_file, tmp_path):
     assert json.loads((c / "metrics.json").read_text())["returns"] == ra
 
 
-def test_ctrl_c_writes_a_checkpoint_that_resumes(spec_file, tmp_path, monkeypatch):
+def test_ctrl_c_writes_a_checkpoint_that_resumes(short_spec, tmp_path, monkeypatch):
     from mitlc import sacpn
 
     whole, cut = tmp_path / "whole", tmp_path / "cut"
-    common = ("--spec", spec_file, "--runs", 2, "-q", "--no-plots")
+    common = ("--spec", short_spec, "--runs", 2, "-q", "--no-plots")
     assert run("train", *common, "--trials", 5, "--out", whole).exit_code == 0
     real = sacpn.Sacpn._trial
     calls = {"n": 0}
@@ -88,9 +71,9 @@ def test_ctrl_c_writes_a_checkpoint_that_resumes(spec_file, tmp_path, monkeypatc
         np.testing.assert_array_equal(pw["xi"], pc["xi"])
 
 
-def test_simulate_prints_a_verdict_per_rollout(spec_file, tmp_path):
+def test_simulate_prints_a_verdict_per_rollout(short_spec, tmp_path):
     out = tmp_path / "pol"
-    assert run("train", "--spec", spec_file, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots").exit_code == 0
+    assert run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots").exit_code == 0
     res = run("simulate", "--policy", out, "--rollouts", 3)
     assert res.exit_code == 0, res.output
     assert res.output.count("rollout ") == 3
@@ -107,17 +90,17 @@ def test_simulate_prints_a_verdict_per_rollout(spec_file, tmp_path):
         (("simulate", "--policy", "EMPTY"), "no params.npz"),
     ],
 )
-def test_user_errors_are_one_line_and_exit_2(spec_file, tmp_path, args, message):
+def test_user_errors_are_one_line_and_exit_2(short_spec, tmp_path, args, message):
     empty = tmp_path / "empty"
     empty.mkdir()
-    args = tuple(str(spec_file) if a == "SPEC" else str(empty) if a == "EMPTY" else a for a in args)
+    args = tuple(str(short_spec) if a == "SPEC" else str(empty) if a == "EMPTY" else a for a in args)
     res = CliRunner().invoke(main, list(args))
     assert res.exit_code == 2, res.output
     assert message in res.output
     assert "Traceback" not in res.output
 
 
-def test_diverging_training_is_a_clean_error(spec_file, tmp_path, monkeypatch):
+def test_diverging_training_is_a_clean_error(short_spec, tmp_path, monkeypatch):
     from mitlc import sacpn
 
     def nan_trial(self):
@@ -125,7 +108,7 @@ def test_diverging_training_is_a_clean_error(spec_file, tmp_path, monkeypatch):
         return np.zeros(self.runs)
 
     monkeypatch.setattr(sacpn.Sacpn, "_trial", nan_trial)
-    res = CliRunner().invoke(main, ["train", "--spec", str(spec_file), "--runs", "2", "--trials", "3",
+    res = CliRunner().invoke(main, ["train", "--spec", str(short_spec), "--runs", "2", "--trials", "3",
                                     "--out", str(tmp_path / "o"), "-q"])
     assert res.exit_code == 2
     assert "diverged" in res.output
