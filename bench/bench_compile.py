@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import time
 
 import numpy as np
 
 from mitlc import ast as A
 from mitlc.compile import compile_spec
 from mitlc.parse import parse_spec
+
+from _timing import timed  # bench/ is on sys.path when a bench runs
 
 PROPS = "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
 UNARY = ("not", "F", "G", "Fi", "Gi", "w")
@@ -53,14 +54,6 @@ def random_formula(rng: np.random.Generator, ops: int) -> A.Formula:
         "R": lambda: A.Release(left, right),
     }[kind]()
 
-
-def timed(fn, repeat: int) -> float:
-    samples = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        samples.append(time.perf_counter() - t0)
-    return statistics.median(samples)
 
 
 def main() -> None:

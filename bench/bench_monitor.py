@@ -15,14 +15,13 @@ prints timings; it asserts nothing about them.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
-from typing import Callable
 
 import numpy as np
 
 from mitlc.monitor import monitor, signals
 from mitlc.parse import parse_formula, parse_spec
+
+from _timing import timed  # bench/ is on sys.path when a bench runs
 
 DT = 0.01
 SPEC = parse_spec("prop a = x > 0\nprop b = y > 0\nformula G[0,2] (a -> F[0,1] b)")
@@ -43,14 +42,6 @@ def trace(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
     y = np.sin(2 * np.pi * t / 1.5) + rng.normal(0.0, 0.01, n)
     return {"x": x, "y": y}
 
-
-def timed(fn: Callable[[], object], repeat: int) -> float:
-    samples = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        samples.append(time.perf_counter() - t0)
-    return statistics.median(samples)
 
 
 def naive_window(x: np.ndarray, lo: int, hi: int, op: np.ufunc, ident: float) -> np.ndarray:
