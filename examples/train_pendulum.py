@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.runs} runs x {args.trials} trials of {agent.n_steps} steps (dt = {agent.dt} s), seed {args.seed}")
     chunk = max(1, args.trials // max(1, args.report))
     while agent.trial < args.trials:
-        returns = agent.train(min(chunk, args.trials - agent.trial))  # (runs, trials of this chunk)
+        # total: the whole plan, so that a violation penalty's ramp spans all the chunks
+        returns = agent.train(min(chunk, args.trials - agent.trial), total=args.trials)  # (runs, chunk trials)
         print(f"trials {agent.trial:5d}: mean return of the last {returns.shape[1]} {returns.mean():+9.2f}")
 
     rollout = agent.rollout(agent.evaluation_states())

@@ -77,6 +77,11 @@ class RewardSystem:
     penalty: float = 0.0
     """``c``: with ``permanent`` subtracted on every step from the first violation on,
     with ``counted`` once per violation; 0 with ``off``."""
+    penalty_places: tuple[str, ...] = ()
+    """The places whose tokens the penalty charges (one per watched part; empty with ``off``)."""
+    charge: R.RExpr | None = None
+    """What ``c`` multiplies (``reward = base - c * charge``): ``v`` (0/1) with ``permanent``,
+    the number of new violations with ``counted``; ``None`` with ``off``."""
 
     @property
     def atoms(self) -> tuple[str, ...]:
@@ -765,8 +770,12 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
             new = [R.Sum((_tokens([p]), R.Neg(_tokens([p], prev=True)))) for p in builder.penalties]
             charge = new[0] if len(new) == 1 else R.Sum(tuple(new))
         reward = R.Sum((reward, R.Neg(R.scale(penalty, charge))))
-        resolved = _resolve(reward, {p.name: i for i, p in enumerate(net.places)})
-    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty)
+        index = {p.name: i for i, p in enumerate(net.places)}
+        resolved = _resolve(reward, index)
+        charge = _resolve(charge, index)
+    else:
+        charge = None
+    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, tuple(builder.penalties), charge)
 
 
 MAX_PAIRS = 200_000

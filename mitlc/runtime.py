@@ -368,24 +368,30 @@ class NetRuntime:
         now = np.tile(markings, (n_codes, 1))
         if self.counters.size:
             now[:, self.counters] = counter_inc.reshape(n_codes * n_codes, -1)
-        reward = np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
+        exprs = [self.rs.reward] + ([self.rs.charge] if self.rs.charge is not None else [])
+        tabs = [np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes) for e in exprs]
         if self.counters.size:  # the table assumes the reward sees counters only through p - ~p
             prev[:, self.counters] += 7
             now[:, self.counters] += 7
-            if not np.array_equal(np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes), reward):
-                return None
-        for a in (next_code, reward, marked, counter_inc):
+            for e, tab in zip(exprs, tabs):
+                if not np.array_equal(np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes), tab):
+                    return None
+        reward = tabs[0]
+        charge = tabs[1] if len(tabs) > 1 else np.zeros_like(reward)
+        for a in (next_code, reward, charge, marked, counter_inc):
             a.setflags(write=False)
-        return _Tables(next_code, reward, marked, counter_inc)
+        return _Tables(next_code, reward, charge, marked, counter_inc)
 
 
 class _Tables:
     """The firing rule and the reward tabulated over marking, atom and clock codes."""
 
-    __slots__ = ("next_code", "reward", "marked", "counter_inc")
+    __slots__ = ("next_code", "reward", "charge", "marked", "counter_inc")
 
-    def __init__(self, next_code: np.ndarray, reward: np.ndarray, marked: np.ndarray, counter_inc: np.ndarray) -> None:
+    def __init__(self, next_code: np.ndarray, reward: np.ndarray, charge: np.ndarray, marked: np.ndarray,
+                 counter_inc: np.ndarray) -> None:
         self.next_code = next_code  # (clock codes, marking codes, atom codes) -> marking code
         self.reward = reward  # (marking codes, marking codes) -> r(M_k, M_k+1)
+        self.charge = charge  # (marking codes, marking codes) -> what the penalty c multiplies (0 with off)
         self.marked = marked  # (marking codes, sub-nets) -> marked place index
         self.counter_inc = counter_inc  # (marking codes, marking codes, counters) -> tokens added

@@ -112,6 +112,19 @@ class SacpnSettings:
     exploration (anti-wind-up, default). ``none``: the thesis's update with the raw
     exploration; the plant still saturates the input."""
 
+    violation_value: str = "known"
+    """With ``violations = permanent``: ``known`` (default) gives the critic the penalty's
+    part of the value exactly, ``c v sum_{j < N-k} gamma^j`` (from the first violation on
+    the penalty is a known constant per step to the end of the trial), and the critic
+    and actor both weigh the rows of the state and timing places only; ``learned``
+    leaves the penalty to the critic, which then also weighs the violation places' rows."""
+
+    penalty_ramp: float = 0.75
+    """With ``violations = permanent | counted``: the penalty ``c`` the learner is paid
+    grows linearly from 0 to its full value over this fraction of the planned trials
+    (a continuation schedule; 0: full from the first trial). The returns recorded are
+    always those of the full reward, the spec's."""
+
     bootstrap_timeout: bool = True
     """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not as a terminal state."""
 
@@ -127,7 +140,9 @@ class SacpnSettings:
             raise TrainingError(f"unknown mask '{self.mask}' (current or next)")
         if self.saturation not in ("applied", "none"):
             raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
-        check_fraction(self, ("gamma", "lam"))
+        if self.violation_value not in ("known", "learned"):
+            raise TrainingError(f"unknown violation_value '{self.violation_value}' (known or learned)")
+        check_fraction(self, ("gamma", "lam", "penalty_ramp"))
         check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma_frac"))
         if any(n < 1 for n in self.rbf):
             raise TrainingError("rbf needs at least one centre per variable")
@@ -417,9 +432,19 @@ class Sacpn:
         # reason to act differently in the same state.
         acting = [s for s, sub in enumerate(rs.net.subnets) if sub.kind != "violation"]
         self._marked_c = self.runtime.tables.marked
+        # the penalty's known part of the value (violation_value = known, permanent only):
+        # pen[code] = c when a penalised place is marked, G[k] = sum_{j < N-k} gamma^j
+        self._known = rs.options.violations == "permanent" and settings.violation_value == "known"
+        if self._known:
+            charged = [rs.net.place_index(p) for p in rs.penalty_places]
+            self._pen = rs.penalty * np.isin(self._marked_c, charged).any(axis=1)
+            self._pen_left = np.array([sum(settings.gamma ** j for j in range(self.n_steps - k))
+                                       for k in range(self.n_steps + 1)])
         self._marked = np.ascontiguousarray(self._marked_c[:, acting])
+        if self._known:
+            self._marked_c = self._marked
         self.n_tokens = len(acting)
-        self.n_tokens_c = self.runtime.n_subnets
+        self.n_tokens_c = self._marked_c.shape[1]
         bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
         self.features = RbfFeatures(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
@@ -433,6 +458,7 @@ class Sacpn:
         self.xi = np.zeros((R, P, F))
         self.theta = np.zeros((R, P, F))
         self.trial = 0
+        self.ramp_trials: int | None = None  # fixed by the first train() (penalty_ramp x planned trials)
         self.returns = np.zeros((R, 0))
         children = np.random.SeedSequence(self.seed).spawn(R)
         pairs = [c.spawn(2) for c in children]
@@ -451,6 +477,11 @@ class Sacpn:
             if v.periodic:
                 x[:, i] = (x[:, i] + np.pi) % (2 * np.pi) - np.pi
         return x
+
+    def penalty_scale(self, trial: int) -> float:
+        """The fraction of the violation penalty ``c`` paid in (0-based) ``trial``."""
+        ramp = self.ramp_trials or 0
+        return 1.0 if trial >= ramp else trial / ramp
 
     def _flat(self, code: np.ndarray, offset: np.ndarray, critic: bool = False) -> np.ndarray:
         return (self._marked_c if critic else self._marked)[code] + offset
@@ -474,14 +505,21 @@ class Sacpn:
         return np.einsum("rkf,rf->r", rows, phi) / self.n_tokens_c
 
     # ------------------------------------------------------------ training
-    def train(self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None) -> np.ndarray:
+    def train(self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None,
+              total: int | None = None) -> np.ndarray:
         """Run ``trials`` more trials on every run; returns their returns ``(R, trials)``.
 
+        ``total``: the trials this learner is meant to run in all, counting those
+        already done (default: done + ``trials``); the first call fixes the penalty
+        ramp (``penalty_ramp``) from it, so a learner trained in chunks passes it.
         ``callback(trial, returns)`` is called after each trial.  On
         KeyboardInterrupt the learner is rolled back to the end of the last
         complete trial (so :meth:`save` then writes a consistent checkpoint)
         and the interrupt is re-raised.
         """
+        if self.ramp_trials is None:
+            planned = self.trial + trials if total is None else max(int(total), self.trial)
+            self.ramp_trials = int(round(self.settings.penalty_ramp * planned)) if self.rs.charge is not None else 0
         out = np.zeros((self.runs, trials))
         done = 0
         try:
@@ -532,7 +570,10 @@ class Sacpn:
         N = self.n_steps
         rt = self.runtime
         tables = rt.tables
-        next_code, reward_tab, marked, marked_c = tables.next_code, tables.reward, self._marked, self._marked_c
+        next_code, reward_full, marked, marked_c = tables.next_code, tables.reward, self._marked, self._marked_c
+        # the penalty ramp: this trial pays s c instead of c (returns are counted with c)
+        s_pen = self.penalty_scale(self.trial)
+        reward_tab = reward_full if s_pen >= 1.0 else reward_full + ((1.0 - s_pen) * self.rs.penalty) * tables.charge
         atom_code, features, integrate, clock = rt.atom_code, self.features, self.integrate, self._clock
         gamma, gl = st.gamma, st.gamma * st.lam
         a_c, a_a = st.alpha_c, st.alpha_a
@@ -578,6 +619,9 @@ class Sacpn:
         u, a, du, coef, v0, v1, u_sat, delta, sv, over = (np.empty(R) for _ in range(10))
         keep = np.zeros(R, dtype=bool)
         bootstrap = st.bootstrap_timeout
+        known = self._known
+        if known:
+            pen, pen_left = self._pen * s_pen, self._pen_left
         vecdot = np.vecdot
         sv_b = sv[:, None] if (one_c or not current) else sv[:, None, None]
         coef_b = coef[:, None] if one else coef[:, None, None]
@@ -610,7 +654,7 @@ class Sacpn:
                 integrate(x, a)
                 code1 = next_code[clock[k], code, atom_code(x)]
                 r = reward_tab[code, code1]
-                ret += r
+                ret += r if s_pen >= 1.0 else reward_full[code, code1]
                 features(x, out=phi_next)
                 flat1 = mk[code1]
                 flat1 += off
@@ -627,6 +671,8 @@ class Sacpn:
                     dot(th_f[flat1_c], phi_next, v1, one_c)
                     v1 *= gamma * inv_kc
                     delta += v1
+                if known:  # V_pen = -pen[code] G[k]: + pen_k G_k - gamma pen_k+1 G_k+1
+                    delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
                 # actor: xi += alpha_a delta du grad pi, grad pi = m phi(x_k)
                 multiply(delta, du, out=coef)
                 if applied:  # never move a saturated output further past the bound:
@@ -699,6 +745,7 @@ class Sacpn:
     def state_dict(self) -> dict[str, np.ndarray]:
         meta = {
             "trial": self.trial,
+            "ramp_trials": self.ramp_trials,
             "runs": self.runs,
             "seed": self.seed,
             "settings": self.settings.to_dict(),
@@ -731,6 +778,7 @@ class Sacpn:
         self.theta = np.array(d["theta"], dtype=float)
         self.returns = np.array(d["returns"], dtype=float).reshape(self.runs, -1)
         self.trial = int(meta["trial"])
+        self.ramp_trials = meta.get("ramp_trials")
         self.seed = int(meta["seed"])
         for g, s in zip(self.rngs, meta["rng_states"]):
             g.bit_generator.state = s

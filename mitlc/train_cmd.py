@@ -153,7 +153,11 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
               help="How '&' combines gated terms (overrides the spec's option).")
 @click.option("--violations", type=click.Choice(["off", "permanent", "counted"]), default=None,
               help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).")
-@click.option("--sigma", type=float, default=None, help="Exploration std of the input (default 0.3 u_max).")
+@click.option("--penalty-ramp", type=click.FloatRange(0, 1), default=None,
+              help="With --violations: the fraction of the trials over which the penalty c grows from 0 "
+                   "(default 0.75; 0 = full from the start).")
+@click.option("--sigma", type=float, default=None,
+              help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL).")
 @click.option("--mask", type=click.Choice(["current", "next"]), default=None,
               help="Update masking: current = M_k (gradient, default), next = M_k+1 (Algorithm 1 as printed).")
 @click.option("--saturation", type=click.Choice(["applied", "none"]), default=None,
@@ -161,8 +165,8 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @handle_errors
-def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjunction, violations, sigma, mask,
-          saturation, no_plots, quiet) -> None:
+def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjunction, violations, penalty_ramp,
+          sigma, mask, saturation, no_plots, quiet) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
     from tqdm import tqdm
 
@@ -201,7 +205,7 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
         train_hybrid_cli(spec, runs, trials, seed, out, progress=not quiet, settings=HyrlSettings(**overrides),
                          plots=not no_plots, resume=resume_dir)
         return
-    settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation)
+    settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
     rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
     agent = Sacpn(rs, settings, runs=runs, seed=seed)
     wall_before = 0.0
@@ -225,7 +229,7 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
     start = time.perf_counter()
     interrupted = False
     try:
-        agent.train(todo, progress)
+        agent.train(todo, progress, total=trials)
     except KeyboardInterrupt:
         interrupted = True
     except TrainingError:
