@@ -566,6 +566,8 @@ class _Builder:
             if not watch:
                 arcs.append((0, 1, Guard(tuple(switch + ([deadline] if deadline and switch[0].state else [])))))
             else:
+                if deadline is not None:  # met only within the interval (a late trigger fails)
+                    switch = [GuardTerm(switch[0].state, A.Interval(0.0, f.interval.hi, hi_closed=f.interval.hi_closed))]
                 arcs.append((0, 1, Guard(tuple(switch))))
                 fail: list[GuardTerm] = []
                 if left_cond is not None and key[1] != A.Const(True):

@@ -85,7 +85,7 @@ def test_deadlines_of_eventually_and_until() -> None:
     guards = {(t.inputs, t.outputs): str(t.guard) for t in rs.net.transitions}
     assert guards[(("p_tau_a",), ("p_late_a",))] == "tau > 2"
     assert guards[(("p_tau_b",), ("p_late_b",))] == "tau >= 2.985"
-    assert guards[(("p_until_U1",), ("p_after_U1",))] == "b"
+    assert guards[(("p_until_U1",), ("p_after_U1",))] == "b & tau <= 1"  # a late b fails
     assert guards[(("p_until_U1",), ("p_failed_U1",))] == "(!a & !b) | tau > 1"
 
 
