@@ -49,7 +49,7 @@ def run_sweep_command() -> tuple[int, float]:
 
 
 def penalty(spec, weight: float, violations: str) -> float:
-    """The one-time violation penalty C the compiler chose (0 without violations)."""
+    """The per-step violation penalty c the compiler chose (0 without violations)."""
     return compile_spec(with_weights(spec, {"psi": weight}), CompileOptions(violations=violations)).penalty
 
 
@@ -70,7 +70,7 @@ def main() -> None:
     atomic_write(FIGURE, png_bytes(fig))
 
     n_runs = SEEDS * RUNS
-    table = ["| weight of `G !psi` | violations | penalty C | success, seed 0 / 1 / 2 | success, mean | "
+    table = ["| weight of `G !psi` | violations | penalty c | success, seed 0 / 1 / 2 | success, mean | "
              f"runs entering psi (of {n_runs}) | other failing runs | final return, mean |",
              "| ---: | --- | ---: | --- | ---: | ---: | ---: | ---: |"]
     success: dict[tuple[str, str], float] = {}
@@ -104,9 +104,10 @@ def main() -> None:
         "passing through psi) with both terms weighted equally and shows runs that cut through psi; the",
         "shipped spec weighs `G !psi` by 10 to prevent it, a weight the thesis notes depends on the trial",
         "length. This page measures how the success rate depends on that weight, with the thesis's reward",
-        "(`option violations = off`) and with the violation-aware reward (`permanent`: a one-time penalty",
-        "C for entering psi or ending outside kappa, large enough that no violating trial out-earns a",
-        "satisfying one, [semantics.md](semantics.md) section 6).",
+        "(`option violations = off`) and with the violation-aware reward (`permanent`: from the first",
+        "entry into psi, or an end outside kappa, every step costs c, more than any step can earn above a",
+        "violation-free one, so that no violating continuation out-earns a satisfying one,",
+        "[semantics.md](semantics.md) section 6).",
         "",
         "Made by `python docs/make_sweep_results.py`, which runs exactly:",
         "",
@@ -153,16 +154,15 @@ READING = [
     "finding: some runs learn to cut through psi (the thesis's explanation: one entry penalty is cheaper",
     "than the reward of arriving early). From weight 2 on no run of the 90 enters psi, and every run at",
     "weights 2, 5 and 10 satisfies the spec; at 20 a few runs no longer end in kappa. For 3 s trials the",
-    "shipped weight of 10 sits in the middle of a wide safe range.",
+    "shipped weight of 10 sits in the middle of a wide safe range, but it had to be found.",
     "",
-    "The violation-aware reward takes the incentive to cut through psi away at every weight (at most one",
-    "run of 90 enters psi), but in 500 trials fewer runs learn the swing-up: most of its failing runs do",
-    "not end in kappa (`F G kappa`). From the first violation on, every step costs c = r_max - r_floor + 1",
-    "= 5 whatever the weight (docs/semantics.md section 6), so an exploratory entry into psi early in a",
-    "trial costs the rest of that trial, and the learner turns timid near the start, which lies next to",
-    "psi. The guarantee is a property of the reward; how fast SACPN learns under it is what this table",
-    "measures. A sweep such as `--grid option.violations=permanent --grid sigma=1,3,5` (or more",
-    "`--trials`) is the next experiment.",
+    "With the violation-aware reward the weight stops mattering for safety: no run at any weight enters",
+    "psi, and equal weights succeed as well as the hand-tuned 10. What is left at weight 20 is the same",
+    "few runs that do not end in kappa as without the option (a large psi term drowns the kappa term",
+    "either way). SACPN learns under the penalty with two choices of its own, the penalty's known",
+    "share of the value and a penalty that ramps in over the first 3/4 of the trials",
+    "([training.md](training.md#violation-penalties)); without them this sweep measured 0.42-0.78",
+    "success with the option (results.md has the ablation).",
 ]
 
 
@@ -174,8 +174,9 @@ def check_reading(success: dict, entering: dict) -> None:
         "weights 2-20, off: no run enters psi": all(entering[(w, "off")] == 0 for w in ws[1:]),
         "weights 2, 5, 10, off: success 1": all(success[(w, "off")] == 1.0 for w in ("2", "5", "10")),
         "weight 20, off: success below 1": success[("20", "off")] < 1.0,
-        "permanent below off at every weight": all(success[(w, "permanent")] < success[(w, "off")] for w in ws),
-        "permanent: at most one run enters psi per weight": all(entering[(w, "permanent")] <= 1 for w in ws),
+        "permanent: no run enters psi at any weight": all(entering[(w, "permanent")] == 0 for w in ws),
+        "permanent, weight 1: as good as off at weight 10": success[("1", "permanent")] >= success[("10", "off")],
+        "permanent, weight 20: below 1 like off": success[("20", "permanent")] < 1.0,
     }
     wrong = [k for k, ok in claims.items() if not ok]
     if wrong:
