@@ -10,9 +10,12 @@ actor and critic update).  Measures, in one process and on one core
   ``NetRuntime.step`` and ``.reward`` on markings, the RBF formula per state);
 
 and prints the ratios.  The baseline also checks the fast path: on the same
-random numbers its returns match the trainer's.
+random numbers its returns match the trainer's.  With ``--violations
+permanent|counted`` it measures instead what the violation-aware reward costs
+the trainer (its penalty ramp, known penalty value and violation sub-nets):
+R = 30 with the option against R = 30 without it, in the same process.
 
-    python bench/bench_train.py [--problem p1] [--trials 40]
+    python bench/bench_train.py [--problem p1] [--trials 40] [--violations permanent]
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.compile import compile_spec  # noqa: E402
+from mitlc.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.parse import load_spec  # noqa: E402
 from mitlc.sacpn import Sacpn, SacpnSettings  # noqa: E402
 
@@ -121,8 +124,20 @@ def main() -> None:
     ap.add_argument("--problem", default="p1", choices=sorted(SPECS))
     ap.add_argument("--trials", type=int, default=40, help="trials timed for the batched trainer")
     ap.add_argument("--naive-trials", type=int, default=4, help="trials timed for the naive loop (3 runs)")
+    ap.add_argument("--violations", default="off", choices=("off", "permanent", "counted"))
     args = ap.parse_args()
-    rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / SPECS[args.problem]))
+    spec = load_spec(ROOT / "specs" / "pendulum" / SPECS[args.problem])
+    rs = compile_spec(spec)
+    if args.violations != "off":
+        rs_v = compile_spec(spec, CompileOptions.from_spec(spec, violations=args.violations))
+        print(f"problem {args.problem}: {len(rs.net.places)} places off, {len(rs_v.net.places)} with "
+              f"{args.violations}; numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
+        rate_off, _ = batched(rs, 30, args.trials)
+        rate_v, _ = batched(rs_v, 30, args.trials)  # the 2 warm-up trials fix a 2-trial ramp: full penalty
+        print(f"R=30 off        : {rate_off:12,.0f} run-steps/s")
+        print(f"R=30 {args.violations:<11}: {rate_v:12,.0f} run-steps/s")
+        print(f"ratio {args.violations} / off: {rate_v / rate_off:5.2f}x")
+        return
     print(f"problem {args.problem}: {len(rs.net.places)} places, {len(rs.net.subnets)} sub-nets, "
           f"numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
     rate1, _ = batched(rs, 1, args.trials)
