@@ -230,7 +230,11 @@ def markdown(d: dict, args) -> str:
         f"{d['machine']}; seed {d['seed']}). Settings: Table 3-2 (gamma {s['gamma']}, lambda {s['lam']}, "
         f"alpha_c {s['alpha_c']}, alpha_a {s['alpha_a']}, RBFs {' x '.join(map(str, s['rbf']))} "
         f"(x {s['rbf_clock']} per clock), T_t = 5 s, T_s = 0.03 s); where the thesis is silent: "
-        f"exploration sigma = {s['sigma']} N, RBF width {s['rbf_width']} x spacing, "
+        f"exploration sigma = {s['sigma']} N"
+        + (f" (Ornstein-Uhlenbeck, correlation time {s['noise_tau']} s)" if s.get("noise_tau") else " (white)")
+        + f", RBF width {s['rbf_width']} x spacing, "
+        f"qdot grid {'+-' + str(s['qdot_grid']) + ' m/s' if s.get('qdot_grid') else 'the plant bound'}, "
+        f"critic started `{s.get('critic_init', 'zero')}`, "
         f"anti-wind-up `{s['saturation']}` (see [hyrl.md](hyrl.md)).",
         "",
         f"Every run's greedy policy is rolled out from {d['initial_states']} initial positions evenly spaced over "

@@ -126,6 +126,35 @@ class HyrlSettings:
     bootstrap_timeout: bool = True
     """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not a terminal state."""
 
+    critic_init: str = "stay"
+    """Initial critic (thesis silent; it gives no initial parameters).  ``zero``: every
+    parameter 0.  ``stay``: the mode part of a mode whose reward has a positive constant
+    part ``c`` (S's stay bonus, +3) starts at ``c / (1 - gamma)`` (+150), the value of
+    staying there at the set-point; the features sum to one, so a constant row is that
+    value.  ``constant``: every mode's part starts at ``c / (1 - gamma)`` of its constant
+    reward (also P: -9 / 0.02 = -450).  Measured (8 runs, seed 1, rise time, 2000 trials):
+    rollouts that stabilise 1% (zero), 60% (stay), 32% (constant: E looks so dangerous
+    that half the runs stop in I).  See docs/hyrl.md."""
+
+    qdot_grid: float | None = 1.5
+    """Half-width of the feature grid in ``qdot`` (m/s); ``None``: the plant's bound (5 m/s,
+    the state bound of section 3-1).  Values outside are clipped for the features only
+    (thesis silent on where the RBF centres lie).  With +-5 m/s the 10 centres are 1.1 m/s
+    apart and ``qdot = 0`` falls between two of them, too coarse for braking into the S
+    band.  Measured (8 runs, Table 3-2 otherwise, states that succeed): overshoot 39%
+    (+-2), 77% (+-1.5), 79% (+-1), seed 0; rise time 64% (+-5), 96% (+-2), 100% (+-1.5),
+    90% (+-1), seed 1."""
+
+    noise_tau: float = 0.1
+    """Correlation time of the exploration in s (thesis silent): ``du`` is an
+    Ornstein-Uhlenbeck process with stationary deviation ``sigma``,
+    ``n_k+1 = a n_k + sqrt(1 - a^2) sigma eps``, ``a = exp(-T_s / noise_tau)``; 0 draws
+    ``du`` independently every step (white).  White noise of 1 N changes the position of
+    the 0.5 kg mass by under a millimetre per sample, too little for the TD error to tell
+    a good push from a bad one.  Measured (8 runs, seed 0): overshoot states that succeed
+    41% (white) -> 54% (0.1 s) with the 5 m/s grid; with the 1.5 m/s grid 0.1 s and
+    0.2 s are alike."""
+
     def to_dict(self) -> dict:
         return settings_to_dict(self)
 
@@ -134,15 +163,17 @@ class HyrlSettings:
         return settings_from_dict(HyrlSettings, d)
 
     def check(self) -> None:
+        if self.critic_init not in ("zero", "stay", "constant"):
+            raise TrainingError(f"unknown critic_init '{self.critic_init}' (zero, stay or constant)")
         if self.saturation not in ("applied", "none"):
             raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
         check_fraction(self, ("gamma", "lam"))
         if not 0.0 < self.sigma_decay <= 1.0:
             raise TrainingError(f"sigma_decay must be in (0, 1], got {self.sigma_decay}")
-        check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma", "sigma_min"))
+        check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma", "sigma_min", "noise_tau"))
         if len(self.rbf) != 3 or any(int(n) < 1 for n in self.rbf) or self.rbf_clock < 1:
             raise TrainingError(f"rbf needs three positive counts (q, qdot, q0) and rbf_clock >= 1, got {self.rbf}")
-        for name in ("trial_s", "dt"):
+        for name in ("trial_s", "dt", "qdot_grid"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise TrainingError(f"{name} must be positive, got {v}")
@@ -297,7 +328,8 @@ class HybridLearner:
         A = self.automaton
         self.time_vars = A.time_vars()
         names = ("q", "qdot", "q0") + self.time_vars
-        bounds = [(plant.var("q").lo, plant.var("q").hi), (plant.var("qdot").lo, plant.var("qdot").hi), A.q0_range]
+        vb = (plant.var("qdot").lo, plant.var("qdot").hi) if settings.qdot_grid is None else (-settings.qdot_grid, settings.qdot_grid)
+        bounds = [(plant.var("q").lo, plant.var("q").hi), vb, A.q0_range]
         bounds += [A.time_range(v) for v in self.time_vars]
         counts = tuple(settings.rbf) + (settings.rbf_clock,) * len(self.time_vars)
         self.features = GridFeatures(names, bounds, counts, settings.rbf_width)
@@ -306,6 +338,7 @@ class HybridLearner:
         R, M, F = self.runs, self.n_modes, self.n_features
         self.xi = np.zeros((R, M, F))
         self.theta = np.zeros((R, M + 1, F))
+        self.theta[:, :M] = self.initial_values()[None, :, None]
         self.returns = np.zeros((R, 0))
         self.trial = 0
         self.wall_s = 0.0
@@ -320,6 +353,22 @@ class HybridLearner:
         """Exploration standard deviation of trial ``trial`` (counted from 0)."""
         st = self.settings
         return max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
+
+    def initial_values(self) -> np.ndarray:
+        """Per mode, the value its mode part starts at (``settings.critic_init``):
+        ``c / (1 - gamma)`` for the constant part ``c`` of the mode's reward (its constants
+        and stay bonus) kept forever; under ``stay`` only where ``c > 0``; zeros under ``zero``."""
+        from mitlc.automaton import Const, StayBonus
+
+        out = np.zeros(self.n_modes)
+        how = self.settings.critic_init
+        if how == "zero":
+            return out
+        for i, m in enumerate(self.automaton.modes):
+            c = sum(t.value for t in m.reward.terms if isinstance(t, (Const, StayBonus)))
+            if how == "constant" or c > 0:
+                out[i] = c / (1.0 - self.settings.gamma)
+        return out
 
     def phi(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
         """Features of the augmented state, ``(R, F)``."""
@@ -419,6 +468,11 @@ class HybridLearner:
         noise = np.empty((N, R))
         for r, g in enumerate(self.rngs):
             noise[:, r] = g.standard_normal(N)
+        if st.noise_tau > 0:  # Ornstein-Uhlenbeck, stationary from the first step
+            a_ou = math.exp(-dt / st.noise_tau)
+            b_ou = math.sqrt(1.0 - a_ou * a_ou)
+            for k in range(1, N):
+                noise[k] = a_ou * noise[k - 1] + b_ou * noise[k]
         noise *= self.sigma_at(self.trial)
         q0 = x[:, 0].copy()
         mode, t = A.reset(x)

@@ -42,7 +42,9 @@ def md_specs():
 def reference_trials(spec, settings, runs, seed, trials):
     """Standard actor-critic on the hybrid automaton, one run at a time, no tricks:
     V = (theta_delta + theta_g) . phi (3-7), pi = xi_delta . phi (3-10), TD error (2-8),
-    accumulating trace (2-16), critic (2-17), actor (2-18) with the applied exploration."""
+    accumulating trace (2-16), critic (2-17), actor (2-18) with the applied exploration;
+    exploration white or Ornstein-Uhlenbeck (``noise_tau``), critic started at
+    ``learner.initial_values()`` (checked on its own below)."""
     learner = HybridLearner(spec, settings, runs=1, seed=0)  # for its features and automaton only
     A, plant, params = learner.automaton, learner.plant, learner.params
     M, F = learner.n_modes, learner.n_features
@@ -56,10 +58,17 @@ def reference_trials(spec, settings, runs, seed, trials):
         rng = np.random.Generator(np.random.PCG64(children[r].spawn(2)[0]))
         xi = np.zeros((M, F))
         theta = np.zeros((M + 1, F))
+        theta[:M] = learner.initial_values()[:, None]
         for trial in range(trials):
             (qlo, qhi), (vlo, vhi) = A.q0_range, A.qdot0_range
             x = np.array([[rng.uniform(qlo, qhi), rng.uniform(vlo, vhi)]])
-            noise = rng.standard_normal(N) * max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
+            eps = rng.standard_normal(N)
+            noise = eps.copy()
+            if st.noise_tau > 0:
+                a_ou = np.exp(-dt / st.noise_tau)
+                for k in range(1, N):
+                    noise[k] = a_ou * noise[k - 1] + np.sqrt(1 - a_ou**2) * eps[k]
+            noise *= max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
             q0 = x[:, 0].copy()
             mode, t = A.reset(x)
             phi = learner.phi(x, q0, t, 0.0)[0]
@@ -92,10 +101,12 @@ def reference_trials(spec, settings, runs, seed, trials):
     return out_returns, np.array(xis), np.array(thetas)
 
 
-@pytest.mark.parametrize("name", ["overshoot", "rise_time"])
-def test_batched_learner_equals_the_per_run_loop(md_specs, name):
+@pytest.mark.parametrize("name,noise_tau,critic_init", [("overshoot", 0.0, "zero"), ("rise_time", 0.0, "constant"),
+                                                       ("overshoot", 0.1, "stay"), ("rise_time", 0.2, "stay")])
+def test_batched_learner_equals_the_per_run_loop(md_specs, name, noise_tau, critic_init):
     spec = md_specs[name]
-    settings = dataclasses.replace(SHORT, sigma=3.0, sigma_decay=0.8, sigma_min=2.0)
+    settings = dataclasses.replace(SHORT, sigma=3.0, sigma_decay=0.8, sigma_min=2.0, noise_tau=noise_tau,
+                                   critic_init=critic_init)
     learner = HybridLearner(spec, settings, runs=3, seed=11)
     returns = learner.train(4)
     ref_returns, ref_xi, ref_theta = reference_trials(spec, settings, 3, 11, 4)
@@ -119,12 +130,56 @@ def test_value_is_general_plus_mode_part_and_policy_is_per_mode():
         np.testing.assert_allclose(learner.value(x, q0, t, mode, 0.0), [10.0, 20.0, 30.0, 40.0][m] + 0.5)
 
 
+def test_critic_starts_at_the_value_of_the_constant_rewards(md_specs):
+    # S: +3 stay bonus kept forever = 3 / (1 - 0.98) = 150; P: -9 / 0.02 = -450; I, E: no constant part
+    names = ("I", "E_Mp", "S", "P")
+    for init, want in (("zero", (0, 0, 0, 0)), ("stay", (0, 0, 150, 0)), ("constant", (0, 0, 150, -450))):
+        lrn = HybridLearner(md_specs["overshoot"], HyrlSettings(critic_init=init), runs=2)
+        assert lrn.automaton.names == names
+        np.testing.assert_allclose(lrn.initial_values(), want, atol=1e-9)
+        x = np.array([[-0.05, 0.3], [0.7, -2.0]])
+        for m in range(4):  # the features sum to one: the value is the constant itself
+            v = lrn.value(x, np.array([-1.0, 1.0]), np.zeros(2), np.full(2, m), 0.0)
+            np.testing.assert_allclose(v, want[m], atol=1e-9)
+    r = HybridLearner(md_specs["rise_time"], runs=1)  # default: stay; the rise-time S is permanent
+    np.testing.assert_allclose(r.initial_values(), (0, 0, 150, 0), atol=1e-9)
+    assert r.automaton.names == ("I", "E_tr", "S", "P")
+
+
+def _applied_exploration(noise_tau, trials=40):
+    # alpha_a = 0 keeps the policy at 0: the applied input is the exploration itself
+    lrn = HybridLearner(parse_spec(OVERSHOOT), HyrlSettings(noise_tau=noise_tau, sigma=2.0, alpha_a=0.0),
+                        runs=1, seed=4)
+    seen = []
+    orig = lrn.plant.step
+
+    class Spy:
+        def step(self, x, a, params):
+            seen.append(float(a[0]))
+            return orig(x, a, params)
+
+    lrn.plant = Spy()
+    lrn.train(trials)
+    n = np.array(seen).reshape(trials, -1)
+    return n.std(), np.mean([np.corrcoef(r[:-1], r[1:])[0, 1] for r in n])
+
+
+def test_exploration_is_ornstein_uhlenbeck_with_stationary_sigma():
+    std, lag1 = _applied_exploration(0.3)
+    assert abs(std - 2.0) < 0.2  # stationary deviation sigma
+    assert abs(lag1 - np.exp(-0.03 / 0.3)) < 0.05  # a = exp(-T_s / tau) = 0.905
+    std, lag1 = _applied_exploration(0.0)  # white
+    assert abs(std - 2.0) < 0.1 and abs(lag1) < 0.05
+
+
 def test_features_follow_table_3_2(md_specs):
     o = HybridLearner(md_specs["overshoot"], runs=1)
     r = HybridLearner(md_specs["rise_time"], runs=1)
     assert o.features.names == ("q", "qdot", "q0") and o.n_features == 10 * 10 * 5
     assert r.features.names == ("q", "qdot", "q0", "t") and r.n_features == 10 * 10 * 5 * 5
-    assert r.features.bounds == ((-1.0, 1.0), (-5.0, 5.0), (-1.0, -0.5), (0.0, 0.8))
+    assert r.features.bounds == ((-1.0, 1.0), (-1.5, 1.5), (-1.0, -0.5), (0.0, 0.8))  # qdot_grid 1.5
+    wide = HybridLearner(md_specs["rise_time"], HyrlSettings(qdot_grid=None), runs=1)
+    assert wide.features.bounds[1] == (-5.0, 5.0)  # the plant's bound (section 3-1)
     assert o.n_steps == 167 and o.dt == 0.03  # T_t = 5 s, T_s = 0.03 s
     s = HybridLearner(parse_spec(OVERSHOOT + "require settling_time <= 2\n"), runs=1)
     assert s.features.names == ("q", "qdot", "q0", "tau") and s.features.bounds[3] == (0.0, 5.0)
@@ -177,6 +232,12 @@ def test_divergence_and_bad_settings_are_training_errors():
         HybridLearner(spec, HyrlSettings(gamma=1.5))
     with pytest.raises(TrainingError, match="saturation"):
         HybridLearner(spec, HyrlSettings(saturation="maybe"))
+    with pytest.raises(TrainingError, match="critic_init"):
+        HybridLearner(spec, HyrlSettings(critic_init="random"))
+    with pytest.raises(TrainingError, match="noise_tau"):
+        HybridLearner(spec, HyrlSettings(noise_tau=-0.1))
+    with pytest.raises(TrainingError, match="qdot_grid"):
+        HybridLearner(spec, HyrlSettings(qdot_grid=0.0))
     with pytest.raises(TrainingError, match="names no plant"):
         HybridLearner(parse_spec("init q in [-1, 1]\nrequire overshoot <= 0\n"))
 
