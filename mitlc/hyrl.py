@@ -20,7 +20,8 @@ Gaussian RBFs ``phi`` on a grid over ``(q, qdot, q0[, t])`` (Table 3-2: 10 x
 run ``i`` draws its numbers from its own generators, spawned from the seed
 with :class:`numpy.random.SeedSequence`, so a seed reproduces a training to
 the bit.  Where the thesis is silent the choices are fields of
-:class:`HyrlSettings` (exploration, RBF width, anti-wind-up), as in
+:class:`HyrlSettings` (exploration and its correlation time, RBF width, the
+velocity span of the grid, the critic's initial value, anti-wind-up), as in
 :mod:`mitlc.sacpn`.
 
 >>> from mitlc.parse import parse_spec
@@ -590,6 +591,10 @@ class HybridLearner:
 
 
 
+_LEGACY_SETTINGS = {"critic_init": "zero", "qdot_grid": None, "noise_tau": 0.0}
+"""What a checkpoint that does not name these settings was trained with."""
+
+
 def load_learner(path: str | Path) -> HybridLearner:
     """Rebuild a learner from a checkpoint written by :meth:`HybridLearner.save`
     (the spec's text travels inside it)."""
@@ -604,7 +609,9 @@ def load_learner(path: str | Path) -> HybridLearner:
     if meta.get("kind") != "hyrl":
         raise InputError("not a HyRL checkpoint", file=str(path))
     spec = parse_spec(meta["spec_source"], meta["spec_path"] or None)
-    learner = HybridLearner(spec, HyrlSettings.from_dict(meta["settings"]), runs=int(meta["runs"]),
+    # checkpoints written before these settings existed were trained without them
+    saved = {**_LEGACY_SETTINGS, **meta["settings"]}
+    learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]),
                             seed=int(meta["seed"]))
     learner.load_state_dict(data)
     return learner

@@ -224,6 +224,27 @@ def test_checkpoint_resume_and_interrupt_are_bit_exact(tmp_path):
     assert np.array_equal(resumed.xi, straight.xi) and np.array_equal(resumed.theta, straight.theta)
 
 
+def test_a_checkpoint_without_the_newer_settings_loads_with_what_it_was_trained_with(tmp_path):
+    import json
+
+    lrn = train_hybrid(parse_spec(OVERSHOOT), SHORT, runs=1, trials=1, seed=0)
+    d = lrn.state_dict()
+    meta = json.loads(str(d["meta"]))
+    for k in ("critic_init", "qdot_grid", "noise_tau"):
+        del meta["settings"][k]
+    d["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "old.npz", **d)
+    old = load_learner(tmp_path / "old.npz")
+    assert old.features.bounds[1] == (-5.0, 5.0)  # the grid it was trained on
+    assert old.settings.noise_tau == 0.0 and old.settings.critic_init == "zero"
+    assert load_learner_roundtrip(lrn, tmp_path).features.bounds[1] == (-1.5, 1.5)
+
+
+def load_learner_roundtrip(lrn, tmp_path):
+    lrn.save(tmp_path / "new.npz")
+    return load_learner(tmp_path / "new.npz")
+
+
 def test_divergence_and_bad_settings_are_training_errors():
     spec = parse_spec(OVERSHOOT)
     with pytest.raises(TrainingError, match="diverged"):
