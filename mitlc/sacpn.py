@@ -39,6 +39,13 @@ the reasons):
   which equals ``exp(-(q - c)^2 / (2 w^2))`` to second order and wraps.
 * **Exploration**: ``du ~ N(0, sigma^2)`` independent per step;
   ``sigma = sigma_frac * u_max`` unless given.
+* **Violation penalties** (``violation_value``, ``penalty_ramp``; only with
+  ``violations = permanent | counted``).  After the first violation the
+  permanent charge is a known constant per step, so the critic is given its
+  share of the value exactly (``c v sum_{j < N-k} gamma^j``) instead of
+  learning it; and the penalty the learner is paid ramps in linearly over the
+  first 3/4 of the planned trials.  Recorded returns are those of the full
+  reward.
 """
 
 from __future__ import annotations
@@ -426,10 +433,10 @@ class Sacpn:
         if self.runtime.tables is None:
             raise TrainingError("the reward net is too large to tabulate for training")
         self.n_places = self.runtime.n_places
-        # The critic weighs the rows of every marked place; the actor only those of
-        # the state and timing places: a violation sub-net (violations = permanent |
-        # counted) tells the critic that the rest of the trial is pinned, but is no
-        # reason to act differently in the same state.
+        # The actor weighs the rows of the state and timing places only: a violation
+        # sub-net is no reason to act differently in the same state. The critic weighs
+        # the violation places' rows too, unless it is given the penalty's value
+        # (violation_value = known with permanent), which is all they would carry.
         acting = [s for s, sub in enumerate(rs.net.subnets) if sub.kind != "violation"]
         self._marked_c = self.runtime.tables.marked
         # the penalty's known part of the value (violation_value = known, permanent only):
