@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from mitlc.automaton import compile_requirements, render_bytes  # noqa: E402
 from mitlc.fileio import atomic_write  # noqa: E402
-from mitlc.hyrl import HybridLearner, HyrlSettings, compose, evaluate  # noqa: E402
+from mitlc.hyrl import HybridLearner, HyrlSettings, brake_bound, compose, evaluate  # noqa: E402
 from mitlc.hyrl_cmd import SMALL_STEP, rollout_mode_figure  # noqa: E402
 from mitlc.parse import load_spec  # noqa: E402
 from mitlc.plots import learning_curve, png_bytes  # noqa: E402
@@ -167,6 +167,9 @@ def main() -> None:
     rows.append(row_of("overshoot_rise_time", "composed (3-3-3)", combined, ctl.runs, 0, ev_c,
                        time.perf_counter() - start,
                        note="no training: " + ", ".join(f"{m} from {src}" for m, src in ctl.describe().items())))
+    bound = brake_bound(ev_c, ctl.automaton, ctl.plant, ctl.params)
+    rows[-1]["brake_bound_state_rate"] = float(bound.mean())
+    rows[-1]["brake_bound_success_rate"] = float(bound.all(axis=1).mean())
     evs["composed"] = ev_c
     if not args.no_direct:
         spec, learner, ev, eval_s = train("overshoot_rise_time", args.runs, args.trials_rise, args.seed, settings,
@@ -349,6 +352,11 @@ def markdown(d: dict, args) -> str:
             extra += (f"; runs with no overshoot from every |q0| >= 0.1: "
                       f"{pct(r['runs_without_overshoot_step_ge_0.1'])}")
         extra += f"; rollouts that stabilise: {pct(r['stabilised_state_rate'])}"
+        if "brake_bound_state_rate" in r:
+            extra += (f"; braking at the bound from the state handed over to E_Mp would avoid the overshoot "
+                      f"from {pct(r['brake_bound_state_rate'])} of the states and from all 50 in "
+                      f"{pct(r['brake_bound_success_rate'])} of the runs (`mitlc.hyrl.brake_bound`: the most "
+                      "any overshoot policy could do with these rise-time handovers)")
         lines.append(f"- `{Path(r['spec']).name}`, {r['method']}: {parts}{extra}.")
     lines += [
         "",

@@ -778,6 +778,41 @@ class ComposedController:
         return _grid_evaluation(self.automaton, self.runs, n_init, self.rollout)
 
 
+def brake_bound(ev: Evaluation, automaton: HybridAutomaton, plant: Plant, params: Mapping[str, float],
+                mode: str = "E_Mp", horizon_s: float = 5.0) -> np.ndarray:
+    """Whether *any* policy of ``mode`` could still avoid an overshoot, ``(R, n)``.
+
+    From the first state of each rollout of ``ev`` in ``mode`` (the state handed
+    over by the modes before it), the input is held at the bound against the
+    motion (``-u_max`` while moving towards and past the set-point) until the mass
+    turns; ``True`` where its peak stays on the start's side of the set-point.
+    Rollouts that never reach ``mode`` count as avoidable when they do not
+    overshoot.  An upper bound on what any policy of ``mode`` and the modes after
+    it can achieve with the handovers of the modes before it.
+    """
+    ro = ev.rollout
+    s = automaton.setpoint
+    B = ro.states.shape[0]
+    q0 = ro.states[:, 0, 0]
+    d = np.where(q0 < s, 1.0, -1.0)  # direction of the step
+    i = ro.names.index(mode)
+    inmode = ro.modes == i
+    reached = inmode.any(axis=1)
+    first = np.argmax(inmode, axis=1)
+    x = ro.states[np.arange(B), first].copy()
+    peak = d * (x[:, 0] - s)
+    u_max, dt = float(params["u_max"]), float(params["dt"])
+    for _ in range(int(round(horizon_s / dt))):
+        moving = d * x[:, 1] > 0
+        if not moving.any():
+            break
+        x = plant.step(x, np.where(moving, -d * u_max, 0.0), params)
+        peak = np.maximum(peak, d * (x[:, 0] - s))
+    own = (d[:, None] * (ro.states[:, :, 0] - s)).max(axis=1) <= 0
+    ok = np.where(reached, peak <= 0, own)
+    return ok.reshape(ev.passed.shape)
+
+
 def compose(
     spec: Spec,
     learners: Sequence[HybridLearner],

@@ -15,6 +15,7 @@ from mitlc.errors import TrainingError
 from mitlc.hyrl import (
     HybridLearner,
     HyrlSettings,
+    brake_bound,
     compose,
     evaluate,
     load_learner,
@@ -313,3 +314,23 @@ def test_composition_runs_each_mode_with_the_policy_learned_for_it(md_specs):
     assert set(names[m] for m in np.unique(ro.modes)) >= {"I", "E_tr"}
     with pytest.raises(TrainingError, match="no learned policy for mode"):
         compose(md_specs["overshoot_rise_time"], [over])
+
+
+def test_brake_bound_tells_which_handovers_any_overshoot_policy_could_still_stop(md_specs):
+    # a constant 0.8 N push in I and E_tr: from q0 = -1 the mass enters E_Mp at
+    # (-0.0996 m, 1.638 m/s), which full braking (20 m/s^2) stops in 0.067 m < 0.0996;
+    # from -0.75 at (-0.0358, 1.465), which needs 0.054 m; from -0.5 it never enters E_Mp
+    # (too slow for the window: P) and overshoots
+    rise = HybridLearner(md_specs["rise_time"], runs=1, seed=0)
+    over = HybridLearner(md_specs["overshoot"], runs=1, seed=0)
+    rise.xi[:] = 0.8
+    over.xi[:] = 0.0
+    ctl = compose(md_specs["overshoot_rise_time"], [rise, over])
+    ev = ctl.evaluate(3)
+    ok = brake_bound(ev, ctl.automaton, ctl.plant, ctl.params)
+    assert ok.tolist() == [[True, False, False]]
+    assert (ev.measured["overshoot"] > 0).all()  # the zero E_Mp policy does not brake
+    ro = ev.rollout
+    k = np.argmax(ro.modes == ro.names.index("E_Mp"), axis=1)
+    x = ro.states[np.arange(3), k]
+    np.testing.assert_allclose(x[:2], [[-0.0996, 1.638], [-0.0358, 1.465]], atol=1e-3)
