@@ -861,3 +861,88 @@ def compose(
         params["dt"] = float(first.settings.dt)
     n_steps = max(1, int(round(automaton.horizon / float(params["dt"]))))
     return ComposedController(automaton, chosen, plant, params, n_steps)
+
+
+def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
+                   callback: Callable[[int, np.ndarray], None] | None = None
+                   ) -> tuple[ComposedController, HybridLearner]:
+    """Go on training ``learner``'s policies of the modes it runs in ``ctl`` from the
+    states the other modes hand over (beyond the thesis, see docs/hyrl.md).
+
+    Each trial starts from the combined spec's initial range; the modes run by other
+    learners act greedily (no exploration, no learning); in the modes run by
+    ``learner`` it explores and learns with standard actor-critic on its own critic,
+    features and settings, with the combined automaton's mode-wise rewards.  Works on
+    a copy: returns the new controller and the retrained copy of ``learner``.
+    """
+    import copy
+
+    if not any(lrn is learner for lrn, _ in ctl.assignment.values()):
+        raise TrainingError("train_handover: the learner runs no mode of the composition")
+    lrn = copy.deepcopy(learner)
+    assignment = {m: ((lrn if l is learner else l), s) for m, (l, s) in ctl.assignment.items()}
+    new = ComposedController(ctl.automaton, assignment, ctl.plant, ctl.params, ctl.n_steps)
+    if new.runs != lrn.runs:
+        raise TrainingError("train_handover: every learner of the composition needs the same number of runs")
+    A, plant, params = ctl.automaton, ctl.plant, ctl.params
+    src = np.array([lrn.automaton.index(s) if l is lrn else -1 for l, s in (assignment[m] for m in A.names)])
+    st = lrn.settings
+    R, N = lrn.runs, ctl.n_steps
+    dt, u_max = float(params["dt"]), float(params["u_max"])
+    gamma, gl, a_c, a_a = st.gamma, st.gamma * st.lam, st.alpha_c, st.alpha_a
+    applied = st.saturation == "applied"
+    rows = np.arange(R)
+    G = lrn.n_modes
+    xi, theta = lrn.xi, lrn.theta
+    control = new.control(rows)
+    (qlo, qhi), (vlo, vhi) = A.q0_range, A.qdot0_range
+    start = time.perf_counter()
+    for trial in range(trials):
+        x = np.array([[g.uniform(qlo, qhi), g.uniform(vlo, vhi)] for g in lrn.rngs])
+        noise = np.stack([g.standard_normal(N) for g in lrn.rngs], axis=1)
+        if st.noise_tau > 0:
+            a_ou = math.exp(-dt / st.noise_tau)
+            b_ou = math.sqrt(1.0 - a_ou * a_ou)
+            for k in range(1, N):
+                noise[k] = a_ou * noise[k - 1] + b_ou * noise[k]
+        noise *= lrn.sigma_at(lrn.trial)
+        q0 = x[:, 0].copy()
+        mode, t = A.reset(x)
+        e = np.zeros_like(theta)
+        ret = np.zeros(R)
+        for k in range(N):
+            u = control(x, q0, t, mode, k * dt)
+            lm = src[mode]
+            act = lm >= 0
+            u_sat = np.clip(u, -u_max, u_max) if applied else u
+            a = np.where(act, u_sat + noise[k], u_sat)
+            a = np.clip(a, -u_max, u_max) if applied else a
+            du = a - u_sat
+            phi = lrn.phi(x, q0, t, k * dt)
+            x = plant.step(x, np.clip(a, -u_max, u_max), params)
+            mode1, t1, r = A.step(mode, t, x, q0, (k + 1) * dt, dt)
+            ret += r
+            lm1 = src[mode1]
+            phi1 = lrn.phi(x, q0, t1, (k + 1) * dt)
+            v0 = np.einsum("rf,rf->r", theta[rows, np.maximum(lm, 0)] + theta[:, G], phi)
+            v1 = np.einsum("rf,rf->r", theta[rows, np.maximum(lm1, 0)] + theta[:, G], phi1)
+            delta = r + gamma * np.where(lm1 >= 0, v1, 0.0) - v0
+            if k == N - 1 and not st.bootstrap_timeout:
+                delta = r - v0
+            delta = np.where(act, delta, 0.0)
+            coef = a_a * delta * du
+            if applied:
+                coef[((u >= u_max) & (coef > 0)) | ((u <= -u_max) & (coef < 0))] = 0.0
+            ra = rows[act]
+            xi[ra, lm[act]] += coef[act, None] * phi[act]
+            e *= gl
+            e[ra, lm[act]] += phi[act]
+            e[ra, G] += phi[act]
+            theta += (a_c * delta)[:, None, None] * e
+            mode, t = mode1, t1
+        if not (np.isfinite(xi).all() and np.isfinite(theta).all()):
+            raise TrainingError("train_handover: a parameter diverged")
+        if callback is not None:
+            callback(trial, ret)
+    lrn.wall_s += time.perf_counter() - start
+    return new, lrn

@@ -17,6 +17,7 @@ from mitlc.hyrl import (
     HyrlSettings,
     brake_bound,
     compose,
+    train_handover,
     evaluate,
     load_learner,
     train_hybrid,
@@ -334,3 +335,26 @@ def test_brake_bound_tells_which_handovers_any_overshoot_policy_could_still_stop
     k = np.argmax(ro.modes == ro.names.index("E_Mp"), axis=1)
     x = ro.states[np.arange(3), k]
     np.testing.assert_allclose(x[:2], [[-0.0996, 1.638], [-0.0358, 1.465]], atol=1e-3)
+
+
+def test_train_handover_retrains_only_the_modes_after_the_handover_on_a_copy(md_specs):
+    rise = HybridLearner(md_specs["rise_time"], runs=2, seed=0)
+    over = HybridLearner(md_specs["overshoot"], runs=2, seed=0)
+    rise.xi[:] = 0.8  # hands over at about 1.6 m/s, 0.1 m before the set-point from q0 = -1
+    ctl = compose(md_specs["overshoot_rise_time"], [rise, over])
+    before = ctl.evaluate(3)
+    xi_rise, xi_over, th_over = rise.xi.copy(), over.xi.copy(), over.theta.copy()
+    new, lrn = train_handover(ctl, over, 60)
+    assert lrn is not over and new.describe() == ctl.describe()
+    np.testing.assert_array_equal(rise.xi, xi_rise)
+    np.testing.assert_array_equal(over.xi, xi_over)
+    np.testing.assert_array_equal(over.theta, th_over)
+    A = over.automaton
+    np.testing.assert_array_equal(lrn.xi[:, A.index("I")], xi_over[:, A.index("I")])  # I is run by rise
+    assert np.abs(lrn.xi[:, A.index("E_Mp")] - xi_over[:, A.index("E_Mp")]).max() > 0.1
+    after = new.evaluate(3)
+    # from q0 = -1 the untrained policy coasts far past the set-point; after 60 trials it brakes
+    assert (before.measured["overshoot"][:, 0] > 1.0).all()
+    assert (after.measured["overshoot"][:, 0] < 0.5 * before.measured["overshoot"][:, 0]).all()
+    _, again = train_handover(ctl, over, 60)  # same seed, same numbers
+    np.testing.assert_array_equal(again.xi, lrn.xi)
