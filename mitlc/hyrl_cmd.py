@@ -316,10 +316,14 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
               help="Initial positions, evenly spaced over SPEC's initial range.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Write rollouts of run 0 with the mode as background colour here (PNG).")
+@click.option("--handover-trials", type=click.IntRange(0, 1_000_000), default=0, show_default=True,
+              help="Beyond the thesis: first retrain the policies of S, P and the last evaluating mode "
+                   "for this many trials from the states the earlier modes hand over (0: plain composition).")
 @handle_errors
-def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None) -> None:
+def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None,
+                handover_trials: int = 0) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
-    from mitlc.hyrl import compose, load_learner
+    from mitlc.hyrl import brake_bound, compose, load_learner, train_handover
     from mitlc.parse import load_spec
     from mitlc.plots import png_bytes
 
@@ -333,12 +337,21 @@ def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path:
     ctl = compose(s, learners)
     for mode, src in ctl.describe().items():
         click.echo(f"mode {mode:<5} policy {src}")
+    if handover_trials:
+        last = ctl.assignment["S"][0]
+        ctl, _ = train_handover(ctl, last, handover_trials)
+        click.echo(f"retrained {Path(last.spec.path or 'spec').stem}'s modes for {handover_trials} trials "
+                   "from the handed-over states")
     ev = ctl.evaluate(n_init)
     for r in range(ctl.runs):
         click.echo(f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
                    f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})")
     click.echo(f"success rate {ev.success_rate():.2f} ({ctl.runs} runs, all of {n_init} initial states); "
                f"states {ev.state_rate():.2f}")
+    if "E_Mp" in ctl.automaton.names:
+        b = brake_bound(ev, ctl.automaton, ctl.plant, ctl.params)
+        click.echo(f"braking at the bound from the states handed over to E_Mp avoids the overshoot from "
+                   f"{b.mean():.2f} of the states")
     if plot_path is not None:
         rows = _example_rows(ev)
         fig = rollout_mode_figure(ev.rollout, ctl.automaton, rows, float(ctl.params["u_max"]),

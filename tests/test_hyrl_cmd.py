@@ -83,6 +83,13 @@ def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
     assert res.exit_code == 0, res.output
     assert "mode E_Mp  policy overshoot:E_Mp" in res.output and "mode E_tr  policy rise_time:E_tr" in res.output
     assert res.output.count("initial states succeed") == 2 and plot.read_bytes()[:4] == b"\x89PNG"
+    assert "braking at the bound from the states handed over to E_Mp" in res.output
+    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
+                                           "--policy", str(tmp_path / "over"), "--initial-states", "2",
+                                           "--handover-trials", "2"])
+    assert res.exit_code == 0, res.output
+    assert "retrained overshoot's modes for 2 trials" in res.output
+    assert res.output.count("initial states succeed") == 2
     res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "over")])
     assert res.exit_code == 2
     assert "overshoot_rise_time.mitl: error: no learned policy for mode(s) I, E_tr" in res.output
