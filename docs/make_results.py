@@ -254,15 +254,14 @@ def write_doc(rows, comparisons, total: float) -> None:
               "Problem 2 with the weight of `G !psi` in {1, 2, 5, 10, 20}, 3 seeds, with and without "
               "`--violations permanent`, run by `mitlc sweep` (`python docs/make_sweep_results.py`): the table "
               "and its reading are in [sweep_results.md](sweep_results.md).", "",
-              "![success rate over the psi weight](figures/sweep_p2_weights.png)", "",
-              "## Classical performance on the mass-damper (thesis chapter 3)", "",
-              "HyRL on the overshoot and rise-time specs of `specs/mass_damper/`: "
-              "[hyrl_results.md](hyrl_results.md) (`python docs/make_hyrl_results.py`).", ""]
+              "![success rate over the psi weight](figures/sweep_p2_weights.png)", ""]
     page = ROOT / "docs" / "results.md"
     old = page.read_text(encoding="utf-8") if page.is_file() else ""
-    begin, end = "<!-- violations:begin -->", "<!-- violations:end -->"
-    if begin in old and end in old:  # the section docs/make_violation_results.py writes
-        lines += [old[old.index(begin): old.index(end) + len(end)], ""]
+    # the sections other scripts write: docs/make_hyrl_results.py, docs/make_violation_results.py
+    for name in ("hyrl", "violations"):
+        begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+        if begin in old and end in old:
+            lines += [old[old.index(begin): old.index(end) + len(end)], ""]
     atomic_write(page, "\n".join(lines))
 
 
