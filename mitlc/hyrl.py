@@ -398,11 +398,13 @@ class HybridLearner:
         u = np.einsum("bf,bf->b", self.xi[run, mode], phi)
         return np.clip(u, -self.u_max, self.u_max)
 
-    def value(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float) -> np.ndarray:
-        """Critic (3-7): general plus mode part, ``(R,)``."""
-        rows = np.arange(x.shape[0])
+    def value(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float,
+              run: np.ndarray | None = None) -> np.ndarray:
+        """Critic (3-7): general plus mode part of each row; row ``b`` uses run ``run[b]``
+        (default: row ``b`` is run ``b``), like :meth:`policy`."""
+        run = np.arange(x.shape[0]) if run is None else run
         phi = self.phi(x, q0, t, tau)
-        return np.einsum("bf,bf->b", self.theta[rows, mode] + self.theta[rows, -1], phi)
+        return np.einsum("bf,bf->b", self.theta[run, mode] + self.theta[run, -1], phi)
 
     # ------------------------------------------------------------ training
     def train(self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None) -> np.ndarray:

@@ -130,6 +130,14 @@ def test_value_is_general_plus_mode_part_and_policy_is_per_mode():
         mode = np.full(2, m)
         np.testing.assert_allclose(learner.policy(x, q0, t, mode, 0.0), u)
         np.testing.assert_allclose(learner.value(x, q0, t, mode, 0.0), [10.0, 20.0, 30.0, 40.0][m] + 0.5)
+    # each row reads its own run's parameters, or the run it is given
+    learner.xi[1] *= 2.0
+    learner.theta[1] *= 2.0
+    mode = np.zeros(2, dtype=int)
+    np.testing.assert_allclose(learner.policy(x, q0, t, mode, 0.0), [1.0, 2.0])
+    np.testing.assert_allclose(learner.value(x, q0, t, mode, 0.0), [10.5, 21.0])
+    np.testing.assert_allclose(learner.value(x, q0, t, mode, 0.0, run=np.array([1, 1])), [21.0, 21.0])
+    np.testing.assert_allclose(learner.policy(x, q0, t, mode, 0.0, run=np.array([1, 0])), [2.0, 1.0])
 
 
 def test_critic_starts_at_the_value_of_the_constant_rewards(md_specs):
