@@ -357,6 +357,22 @@ class HybridLearner:
         st = self.settings
         return max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
 
+    def exploration_noise(self, n_steps: int, dt: float) -> np.ndarray:
+        """This trial's input exploration ``(n_steps, R)``: each run draws ``n_steps``
+        normals from its own generator; with ``noise_tau`` they are filtered into an
+        Ornstein-Uhlenbeck process (stationary from the first step); scaled by
+        :meth:`sigma_at` of the current trial."""
+        st = self.settings
+        noise = np.empty((n_steps, self.runs))
+        for r, g in enumerate(self.rngs):
+            noise[:, r] = g.standard_normal(n_steps)
+        if st.noise_tau > 0:
+            a_ou = math.exp(-dt / st.noise_tau)
+            b_ou = math.sqrt(1.0 - a_ou * a_ou)
+            for k in range(1, n_steps):
+                noise[k] = a_ou * noise[k - 1] + b_ou * noise[k]
+        return noise * self.sigma_at(self.trial)
+
     def initial_values(self) -> np.ndarray:
         """Per mode, the value its mode part starts at (``settings.critic_init``):
         ``c / (1 - gamma)`` for the constant part ``c`` of the mode's reward (its constants
@@ -470,15 +486,7 @@ class HybridLearner:
         xi, theta = self.xi, self.theta
 
         x = self.sample_init(self.rngs)
-        noise = np.empty((N, R))
-        for r, g in enumerate(self.rngs):
-            noise[:, r] = g.standard_normal(N)
-        if st.noise_tau > 0:  # Ornstein-Uhlenbeck, stationary from the first step
-            a_ou = math.exp(-dt / st.noise_tau)
-            b_ou = math.sqrt(1.0 - a_ou * a_ou)
-            for k in range(1, N):
-                noise[k] = a_ou * noise[k - 1] + b_ou * noise[k]
-        noise *= self.sigma_at(self.trial)
+        noise = self.exploration_noise(N, dt)
         q0 = x[:, 0].copy()
         mode, t = A.reset(x)
         phi = self.phi(x, q0, t, 0.0)
@@ -901,13 +909,7 @@ def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
     start = time.perf_counter()
     for trial in range(trials):
         x = np.array([[g.uniform(qlo, qhi), g.uniform(vlo, vhi)] for g in lrn.rngs])
-        noise = np.stack([g.standard_normal(N) for g in lrn.rngs], axis=1)
-        if st.noise_tau > 0:
-            a_ou = math.exp(-dt / st.noise_tau)
-            b_ou = math.sqrt(1.0 - a_ou * a_ou)
-            for k in range(1, N):
-                noise[k] = a_ou * noise[k - 1] + b_ou * noise[k]
-        noise *= lrn.sigma_at(lrn.trial)
+        noise = lrn.exploration_noise(N, dt)
         q0 = x[:, 0].copy()
         mode, t = A.reset(x)
         e = np.zeros_like(theta)
