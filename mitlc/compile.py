@@ -77,8 +77,6 @@ class RewardSystem:
     penalty: float = 0.0
     """``c``: with ``permanent`` subtracted on every step from the first violation on,
     with ``counted`` once per violation; 0 with ``off``."""
-    penalty_places: tuple[str, ...] = ()
-    """The places whose tokens the penalty charges (one per watched part; empty with ``off``)."""
     charge: R.RExpr | None = None
     """What ``c`` multiplies (``reward = base - c * charge``): ``v`` (0/1) with ``permanent``,
     the number of new violations with ``counted``; ``None`` with ``off``."""
@@ -777,7 +775,7 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
         charge = _resolve(charge, index)
     else:
         charge = None
-    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, tuple(builder.penalties), charge)
+    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, charge)
 
 
 MAX_PAIRS = 200_000

@@ -438,18 +438,18 @@ class Sacpn:
         # the violation places' rows too, unless it is given the penalty's value
         # (violation_value = known with permanent), which is all they would carry.
         acting = [s for s, sub in enumerate(rs.net.subnets) if sub.kind != "violation"]
-        self._marked_c = self.runtime.tables.marked
+        tables = self.runtime.tables
+        self._marked = np.ascontiguousarray(tables.marked[:, acting])
         # the penalty's known part of the value (violation_value = known, permanent only):
-        # pen[code] = c when a penalised place is marked, G[k] = sum_{j < N-k} gamma^j
+        # V_pen = -pen[code] G[k], pen[code] = c when the marking records a violation (a
+        # permanent charge depends only on the marking entered: any row of the table
+        # gives it), G[k] = sum_{j < N-k} gamma^j
         self._known = rs.options.violations == "permanent" and settings.violation_value == "known"
         if self._known:
-            charged = [rs.net.place_index(p) for p in rs.penalty_places]
-            self._pen = rs.penalty * np.isin(self._marked_c, charged).any(axis=1)
+            self._pen = rs.penalty * tables.charge.max(axis=0)
             self._pen_left = np.array([sum(settings.gamma ** j for j in range(self.n_steps - k))
                                        for k in range(self.n_steps + 1)])
-        self._marked = np.ascontiguousarray(self._marked_c[:, acting])
-        if self._known:
-            self._marked_c = self._marked
+        self._marked_c = self._marked if self._known else tables.marked
         self.n_tokens = len(acting)
         self.n_tokens_c = self._marked_c.shape[1]
         bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
