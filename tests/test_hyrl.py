@@ -195,6 +195,37 @@ def test_features_follow_table_3_2(md_specs):
     assert s.features.names == ("q", "qdot", "q0", "tau") and s.features.bounds[3] == (0.0, 5.0)
 
 
+def test_q_centres_crowd_towards_the_set_point(md_specs):
+    # q_warp 0.5: centres even in s + sign(q - s) D sqrt(|q - s| / D), D = 1 here
+    o = HybridLearner(md_specs["overshoot"], runs=1)
+    w = np.linspace(-1, 1, 10)
+    np.testing.assert_allclose(o.features.centres_in(0), np.sign(w) * w**2, atol=1e-12)
+    np.testing.assert_allclose(o.features.centres_in(0)[5:], [1 / 81, 1 / 9, 25 / 81, 49 / 81, 1.0])
+    even = HybridLearner(md_specs["overshoot"], HyrlSettings(q_warp=1.0), runs=1)
+    np.testing.assert_allclose(even.features.centres_in(0), np.linspace(-1, 1, 10))
+    # auto: an even grid for the rise time alone (its bands spread over the step), crowded otherwise
+    assert o.q_warp == 0.5 and even.q_warp == 1.0
+    assert HybridLearner(md_specs["rise_time"], runs=1).q_warp == 1.0
+    assert HybridLearner(md_specs["overshoot_rise_time"], runs=1).q_warp == 0.5
+    assert HybridLearner(md_specs["rise_time"], HyrlSettings(q_warp=0.5), runs=1).q_warp == 0.5
+    settle = HybridLearner(parse_spec(OVERSHOOT.replace("require overshoot <= 0", "require settling_time <= 2")))
+    assert settle.q_warp == 0.5
+    # the other axes are even grids either way
+    np.testing.assert_allclose(o.features.centres_in(1), np.linspace(-1.5, 1.5, 10))
+    # a q at a centre puts the largest weight on it; the kernels narrow with the spacing
+    f = o.features
+    for c in f.centres_in(0):
+        z = np.array([[c, 0.0, 0.0]])
+        g = f(z).reshape(10, 10, 5).sum(axis=(1, 2))
+        assert np.argmax(g) == np.argmin(np.abs(f.centres_in(0) - c))
+    near = f(np.array([[0.012, 0.0, 0.0], [0.011, 0.0, 0.0]])).reshape(2, 10, -1).sum(axis=2)
+    far = f(np.array([[0.605, 0.0, 0.0], [0.604, 0.0, 0.0]])).reshape(2, 10, -1).sum(axis=2)
+    assert np.abs(near[0] - near[1]).sum() > 5 * np.abs(far[0] - far[1]).sum()  # sqrt(0.605 / 0.012) = 7
+    # a set-point off zero moves the crowding with it
+    moved = HybridLearner(parse_spec(OVERSHOOT.replace("setpoint 0", "setpoint 0.5")), runs=1)
+    assert np.min(np.abs(moved.features.centres_in(0) - 0.5)) < 0.02
+
+
 # ------------------------------------------------------------------ seeding and checkpoints
 
 
@@ -240,13 +271,14 @@ def test_a_checkpoint_without_the_newer_settings_loads_with_what_it_was_trained_
     lrn = train_hybrid(parse_spec(OVERSHOOT), SHORT, runs=1, trials=1, seed=0)
     d = lrn.state_dict()
     meta = json.loads(str(d["meta"]))
-    for k in ("critic_init", "qdot_grid", "noise_tau"):
+    for k in ("critic_init", "qdot_grid", "noise_tau", "q_warp"):
         del meta["settings"][k]
     d["meta"] = np.array(json.dumps(meta))
     np.savez(tmp_path / "old.npz", **d)
     old = load_learner(tmp_path / "old.npz")
     assert old.features.bounds[1] == (-5.0, 5.0)  # the grid it was trained on
-    assert old.settings.noise_tau == 0.0 and old.settings.critic_init == "zero"
+    assert old.settings.noise_tau == 0.0 and old.settings.critic_init == "zero" and old.settings.q_warp == 1.0
+    np.testing.assert_allclose(old.features.centres_in(0), np.linspace(-1, 1, 10))
     assert load_learner_roundtrip(lrn, tmp_path).features.bounds[1] == (-1.5, 1.5)
 
 
@@ -269,6 +301,9 @@ def test_divergence_and_bad_settings_are_training_errors():
         HybridLearner(spec, HyrlSettings(noise_tau=-0.1))
     with pytest.raises(TrainingError, match="qdot_grid"):
         HybridLearner(spec, HyrlSettings(qdot_grid=0.0))
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(TrainingError, match="q_warp"):
+            HybridLearner(spec, HyrlSettings(q_warp=bad))
     with pytest.raises(TrainingError, match="names no plant"):
         HybridLearner(parse_spec("init q in [-1, 1]\nrequire overshoot <= 0\n"))
 
