@@ -84,8 +84,14 @@ class HyrlSettings:
     alpha_c: float = 0.3
     """Critic learning rate (Table 3-2)."""
 
-    alpha_a: float = 0.08
-    """Actor learning rate (Table 3-2)."""
+    alpha_a: float = 0.04
+    """Actor learning rate.  Table 3-2 gives 0.08 for the thesis's exploration, which it
+    does not describe; with this learner's (Ornstein-Uhlenbeck, :attr:`noise_tau`) and
+    centres (:attr:`q_warp`) half of it is measured better on both of the thesis's
+    problems (20 runs; runs whose greedy policy succeeds from every initial state, 0.08
+    -> 0.04): overshoot after 800 trials (``|q0| >= 0.1``) 0.65 -> 0.90 (seed 0),
+    0.60 -> 0.95 (seed 1), 0.45 -> 0.95 (seed 2), 0.50 -> 0.90 (seed 3); rise time
+    after 2000 trials 0.95 -> 1.00 (seed 0), 0.70 -> 0.90 (seed 1).  See docs/hyrl.md."""
 
     rbf: tuple[int, int, int] = (10, 10, 5)
     """RBF centres for ``q``, ``qdot`` and ``q0`` (Table 3-2: 10 x 10 x 5)."""
