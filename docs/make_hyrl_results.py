@@ -319,13 +319,17 @@ def markdown(d: dict, args) -> str:
         "",
         f"(total {d['total_wall_s']:.0f} s, one process, Python {d['python']}, numpy {d['numpy']}, "
         f"{d['machine']}; seed {d['seed']}). Settings: Table 3-2 (gamma {s['gamma']}, lambda {s['lam']}, "
-        f"alpha_c {s['alpha_c']}, alpha_a {s['alpha_a']}, RBFs {' x '.join(map(str, s['rbf']))} "
-        f"(x {s['rbf_clock']} per clock), T_t = 5 s, T_s = 0.03 s); where the thesis is silent: "
+        f"alpha_c {s['alpha_c']}, RBFs {' x '.join(map(str, s['rbf']))} "
+        f"(x {s['rbf_clock']} per clock), T_t = 5 s, T_s = 0.03 s), but alpha_a {s['alpha_a']} "
+        "(Table 3-2: 0.08; measured); where the thesis is silent: "
         f"exploration sigma = {s['sigma']} N"
         + (f" (Ornstein-Uhlenbeck, correlation time {s['noise_tau']} s)" if s.get("noise_tau") else " (white)")
         + f", RBF width {s['rbf_width']} x spacing, "
         f"qdot grid {'+-' + str(s['qdot_grid']) + ' m/s' if s.get('qdot_grid') else 'the plant bound'}, "
-        f"critic started `{s.get('critic_init', 'zero')}`, "
+        + (f"q centres warped towards the set-point (q_warp {s['q_warp']}), "
+           if s.get("q_warp") is not None else
+           "q centres warped towards the set-point (`q_warp` auto: 0.5, an even grid for the rise time alone), ")
+        + f"critic started `{s.get('critic_init', 'zero')}`, "
         f"anti-wind-up `{s['saturation']}` (see [hyrl.md](hyrl.md)).",
         "",
         f"Every run's greedy policy is rolled out from {d['initial_states']} initial positions evenly spaced over "
