@@ -262,14 +262,13 @@ def train_hybrid_cli(
         click.echo(f"interrupted after trial {learner.trial}; checkpoint in {out / PARAMS}\n"
                    f"continue with: mitlc train --resume {out} --trials {trials}", err=True)
         sys.exit(130)
-    if progress:
-        click.echo(
-            f"{learner.runs} runs x {learner.trial} trials in {wall:.1f} s; "
-            f"final mean return {metrics.get('final_mean_return', float('nan')):.1f}; "
-            f"success rate {metrics.get('success_rate', float('nan')):.2f} "
-            f"({metrics.get('initial_states', 0)} initial states per run); results in {out}",
-            err=True,
-        )
+    # the summary line, like SACPN's (also under -q: only the progress bar is quiet)
+    click.echo(
+        f"{learner.runs} runs x {learner.trial} trials in {wall:.1f} s; "
+        f"final mean return {metrics.get('final_mean_return', float('nan')):.1f}; "
+        f"success rate {metrics.get('success_rate', float('nan')):.2f} "
+        f"({metrics.get('initial_states', 0)} initial states per run); results in {out}"
+    )
     return metrics
 
 
@@ -305,6 +304,63 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
         atomic_write(output, text)
 
 
+# ---------------------------------------------------------------- mitlc simulate (HyRL policies)
+
+
+def _load_learners(policy_dirs: Sequence[str]) -> list:
+    from mitlc.hyrl import load_learner
+
+    learners = []
+    for d in policy_dirs:
+        ckpt = Path(d) / PARAMS
+        if not ckpt.is_file():
+            raise InputError(f"no {PARAMS} in {d} (train first with 'mitlc train --out DIR')", file=str(d))
+        learners.append(load_learner(ckpt))
+    return learners
+
+
+def simulate_hybrid(policy_dirs: Sequence[str], spec_path: str | None, rollouts: int | None, seed: int,
+                    plot_path: str | None) -> None:
+    """``mitlc simulate`` for HyRL policies: greedy rollouts from random initial states of the
+    spec's set, judged by the checker.  One policy runs on its own automaton (or on ``--spec``'s);
+    several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
+    from mitlc.hyrl import STABLE_FRACTION, _judge, compose
+    from mitlc.plots import png_bytes
+
+    learners = _load_learners(policy_dirs)
+    if spec_path is None and len(learners) > 1:
+        raise InputError("name the combined spec to run several HyRL policies on", file="--spec")
+    if spec_path is None:
+        runner, automaton = learners[0], learners[0].automaton
+    else:
+        ctl = compose(_load_spec(spec_path), learners)
+        runner, automaton = ctl, ctl.automaton
+    runs = runner.runs
+    n = rollouts or runs
+    rng = np.random.default_rng(seed)
+    (qlo, qhi), (vlo, vhi) = automaton.q0_range, automaton.qdot0_range
+    x0 = np.stack([rng.uniform(qlo, qhi, n), rng.uniform(vlo, vhi, n)], axis=1)
+    run = np.arange(n) % runs
+    ro = runner.rollout(x0, run)
+    verdict = _judge(automaton, ro)
+    s = automaton.setpoint
+    stable = np.abs(ro.states[:, -1, 0] - s) <= STABLE_FRACTION * np.abs(x0[:, 0] - s)
+    ok = verdict.all & stable
+    for i in range(n):
+        parts = []
+        for name, passed in verdict.passed.items():
+            parts.append(f"{name} {verdict.measured[name][i]:.3g} {'ok' if passed[i] else 'FAILED'}")
+        parts.append("stabilised" if stable[i] else "NOT stabilised")
+        click.echo(f"rollout {i:3d} (run {run[i]:3d}, q0={x0[i, 0]:.3f}, qdot0={x0[i, 1]:.3f}): "
+                   f"{'; '.join(parts)}; return {ro.returns[i]:.1f}")
+    reqs = ", ".join(r.name for r in automaton.requirements)
+    click.echo(f"{int(ok.sum())}/{n} rollouts meet {reqs} and stabilise")
+    rows = list(range(min(n, 3)))
+    fig = rollout_mode_figure(ro, automaton, rows, float(learners[0].u_max),
+                              f"{int(ok.sum())}/{n} rollouts succeed")
+    atomic_write(plot_path or Path(policy_dirs[0]) / "simulate.png", png_bytes(fig))
+
+
 # ---------------------------------------------------------------- mitlc compose
 
 
@@ -323,17 +379,12 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
 def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None,
                 handover_trials: int = 0) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
-    from mitlc.hyrl import brake_bound, compose, load_learner, train_handover
+    from mitlc.hyrl import brake_bound, compose, train_handover
     from mitlc.parse import load_spec
     from mitlc.plots import png_bytes
 
     s = load_spec(spec)
-    learners = []
-    for d in policy_dirs:
-        ckpt = Path(d) / PARAMS
-        if not ckpt.is_file():
-            raise InputError(f"no {PARAMS} in {d} (train first with 'mitlc train --out DIR')", file=str(d))
-        learners.append(load_learner(ckpt))
+    learners = _load_learners(policy_dirs)
     ctl = compose(s, learners)
     for mode, src in ctl.describe().items():
         click.echo(f"mode {mode:<5} policy {src}")

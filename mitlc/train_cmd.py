@@ -250,8 +250,10 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
 
 
 @click.command("simulate")
-@click.option("--policy", "policy_dir", type=click.Path(file_okay=False, exists=True), required=True,
-              help="Directory written by 'mitlc train'.")
+@click.option("--policy", "policy_dirs", type=click.Path(file_okay=False, exists=True), required=True,
+              multiple=True,
+              help="Directory written by 'mitlc train'; repeat to run HyRL policies learned separately "
+                   "composed on --spec's combined automaton.")
 @click.option("--spec", "spec_path", type=click.Path(dir_okay=False), default=None,
               help="Spec to judge by and start from (default: the training spec).")
 @click.option("--rollouts", type=click.IntRange(1, 100000), default=None,
@@ -260,16 +262,28 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Write the figure here (default DIR/simulate.png).")
 @handle_errors
-def simulate(policy_dir, spec_path, rollouts, seed, plot_path) -> None:
-    """Roll out a trained greedy policy from the spec's initial set and judge each rollout."""
+def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
+    """Roll out a trained greedy policy from the spec's initial set and judge each rollout.
+
+    HyRL policies (classical criteria) are judged by the checker; several of them run
+    composed on --spec's combined automaton (thesis section 3-3-3)."""
     from mitlc.compile import CompileOptions, compile_spec
     from mitlc.sacpn import Sacpn, SacpnSettings, read_meta
 
+    policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
     if not ckpt.is_file():
         raise InputError(f"no {PARAMS} in {policy_dir} (train first with 'mitlc train --out DIR')",
                          file=str(policy_dir))
     meta = read_meta(ckpt)
+    if meta.get("kind") == "hyrl":
+        from mitlc.hyrl_cmd import simulate_hybrid
+
+        simulate_hybrid(policy_dirs, spec_path, rollouts, seed, plot_path)
+        return
+    if len(policy_dirs) > 1:
+        raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy",
+                         file="--policy")
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
     rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=meta.get("conjunction"),
                                                      violations=meta.get("violations")))

@@ -79,6 +79,10 @@ def test_simulate_prints_a_verdict_per_rollout(short_spec, tmp_path):
     assert res.output.count("rollout ") == 3
     assert "rollouts satisfy" in res.output
     assert (out / "simulate.png").stat().st_size > 0
+    res = run("simulate", "--policy", out, "--policy", out)
+    assert res.exit_code == 2
+    assert res.output.strip() == (
+        "--policy: error: only HyRL policies (classical criteria) run composed; give one SACPN policy")
 
 
 @pytest.mark.parametrize(
