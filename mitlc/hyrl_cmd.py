@@ -263,11 +263,17 @@ def train_hybrid_cli(
                    f"continue with: mitlc train --resume {out} --trials {trials}", err=True)
         sys.exit(130)
     # the summary line, like SACPN's (also under -q: only the progress bar is quiet)
+    big = metrics.get(f"success_rate_step_ge_{SMALL_STEP}")
+    all_states = metrics.get("initial_states", 0)
+    n_big = int((np.abs(np.linspace(*learner.automaton.q0_range, all_states) - learner.automaton.setpoint)
+                 >= SMALL_STEP).sum()) if all_states else 0
+    small = ("" if big is None or n_big == all_states
+             else f"; {big:.2f} from the {n_big} at least {SMALL_STEP} from the set-point")
     click.echo(
         f"{learner.runs} runs x {learner.trial} trials in {wall:.1f} s; "
         f"final mean return {metrics.get('final_mean_return', float('nan')):.1f}; "
         f"success rate {metrics.get('success_rate', float('nan')):.2f} "
-        f"({metrics.get('initial_states', 0)} initial states per run); results in {out}"
+        f"({metrics.get('initial_states', 0)} initial states per run{small}); results in {out}"
     )
     return metrics
 

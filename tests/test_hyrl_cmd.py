@@ -39,10 +39,15 @@ def test_automaton_errors_are_one_line_and_exit_2(tmp_path):
     assert res.exit_code == 2 and "no 'require'" in res.output
 
 
-def test_train_hybrid_cli_writes_everything(spec_dir, tmp_path):
+def test_train_hybrid_cli_writes_everything(spec_dir, tmp_path, capsys):
     out = tmp_path / "run"
     m = train_hybrid_cli(spec_dir / "mass_damper" / "overshoot.mitl", runs=2, trials=3, seed=4, out=out,
                          progress=False, settings=HyrlSettings(trial_s=0.6), n_init=5)
+    line = capsys.readouterr().out.strip()
+    # q0 in {-1, -0.5, 0, 0.5, 1}: the start at the set-point is reported apart (section 3-3-1)
+    assert line.startswith("2 runs x 3 trials in ") and (
+        f"success rate {m['success_rate']:.2f} (5 initial states per run; "
+        f"{m['success_rate_step_ge_0.1']:.2f} from the 4 at least 0.1 from the set-point); results in {out}") in line
     for f in ("metrics.json", "params.npz", "learning_curve.png", "rollout.png"):
         assert (out / f).is_file(), f
     on_disk = json.loads((out / "metrics.json").read_text())
