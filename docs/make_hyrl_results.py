@@ -1,4 +1,4 @@
-"""Train HyRL on the three mass-damper specs of thesis chapter 3 and write docs/hyrl_results.md.
+"""Train HyRL on the mass-damper specs (thesis chapter 3 and beyond) and write docs/hyrl_results.md.
 
     python docs/make_hyrl_results.py                  # the committed results
     python docs/make_hyrl_results.py --quick          # a smoke run (few runs and trials)
@@ -10,6 +10,8 @@ from 50 initial positions evenly spaced over the spec's initial range and
 judges each rollout with the classical-criteria checker (``mitlc.criteria``).
 The combined spec (section 3-3-3) is run with the policies learned separately
 (composition, the thesis's method) and, for comparison, trained directly.
+The settling-time and steady-state-error specs (beyond the thesis) get the
+overshoot's number of trials.
 
 Writes ``docs/hyrl_results.md``, ``docs/hyrl_results.json`` and the figures in
 ``docs/figures/hyrl/``.  Every number in the Markdown comes from this run.
@@ -116,6 +118,12 @@ def row_of(label, method, spec, learner_runs, trials, ev, wall, note=""):
         out["rise_time_range_when_met"] = [float(rt.min()), float(rt.max())] if rt.size else None
         by_q0 = ev.measured["rise_time"]
         out["rise_time_q0_first_last_run0"] = [float(by_q0[0, 0]), float(by_q0[0, -1])]
+    for name in ("settling_time", "steady_state_error"):
+        if name in ev.measured:
+            m = ev.measured[name][:, big]
+            finite = m[np.isfinite(m)]
+            out[f"{name}_median_step_ge_0.1"] = float(np.median(finite)) if finite.size else None
+            out[f"{name}_max_step_ge_0.1"] = float(finite.max()) if finite.size == m.size else None
     if "overshoot" in ev.measured:
         out["max_overshoot_step_ge_0.1"] = float(ev.measured["overshoot"][:, big].max())
         out["runs_without_overshoot_step_ge_0.1"] = float((ev.measured["overshoot"][:, big] == 0).all(axis=1).mean())
@@ -129,6 +137,8 @@ def main() -> None:
     ap.add_argument("--trials-rise", type=int, default=2000, help="thesis section 3-3-2: 2000")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-direct", action="store_true", help="skip training the combined spec directly")
+    ap.add_argument("--no-beyond", action="store_true",
+                    help="skip the settling-time and steady-state-error specs (beyond the thesis)")
     ap.add_argument("--quick", action="store_true", help="smoke run: 2 runs, 20/40 trials, to a scratch dir")
     ap.add_argument("--out", type=Path, default=None, help="write here instead of docs/ (default for --quick: /tmp)")
     ap.add_argument("-q", "--quiet", action="store_true")
@@ -191,6 +201,17 @@ def main() -> None:
         atomic_write(figs / "learning_overshoot_rise_time.png", png_bytes(learning_curve(
             learner.returns, title=f"overshoot_rise_time: HyRL trained directly, {learner.runs} runs")))
 
+    # beyond the thesis: the settling time and the steady-state error (docs/hyrl.md), as many
+    # trials as the overshoot (their automata have its shape)
+    beyond = () if args.no_beyond else ("settling_time", "steady_state_error")
+    for name in beyond:
+        spec, learner, ev, eval_s = train(name, args.runs, args.trials_overshoot, args.seed, settings, args.quiet)
+        learners[name], evs[name] = learner, ev
+        rows.append(row_of(name, "HyRL (beyond the thesis)", spec, learner.runs, args.trials_overshoot, ev,
+                           learner.wall_s + eval_s))
+        atomic_write(figs / f"learning_{name}.png", png_bytes(learning_curve(
+            learner.returns, title=f"{name}: HyRL on the mass-damper, {learner.runs} runs")))
+
     # rollouts like Figures 3-7, 3-14 and 3-15 and the responses of one run from all 50 states
     pics = {}
     for key, automaton, u_max in (
@@ -198,7 +219,7 @@ def main() -> None:
         ("rise_time", learners["rise_time"].automaton, learners["rise_time"].u_max),
         ("composed", ctl.automaton, learners["overshoot"].u_max),
         ("composed_handover", ctl_h.automaton, learners["overshoot"].u_max),
-    ):
+    ) + tuple((name, learners[name].automaton, learners[name].u_max) for name in beyond):
         ev = evs[key]
         run = shown_run(ev)
         n = len(ev.q0)
@@ -210,7 +231,7 @@ def main() -> None:
         atomic_write(figs / f"responses_{key}.png", png_bytes(responses_figure(
             ev, automaton, run, f"{key}, run {run}: {ok}/{n} initial states meet the criteria (failures dashed)")))
         pics[key] = run
-    for name in ("overshoot", "rise_time", "overshoot_rise_time"):
+    for name in ("overshoot", "rise_time", "overshoot_rise_time") + beyond:
         h = compile_requirements(load_spec(SPECS / f"{name}.mitl"))
         atomic_write(figs / f"automaton_{name}.svg", render_bytes(h, "svg"))
 
@@ -309,7 +330,7 @@ def pct(x) -> str:
 def markdown(d: dict, args) -> str:
     s = d["settings"]
     lines = [
-        "# HyRL results on the mass-damper (thesis chapter 3)",
+        "# HyRL results on the mass-damper (thesis chapter 3, and beyond)",
         "",
         "Generated by",
         "",
@@ -333,7 +354,8 @@ def markdown(d: dict, args) -> str:
         f"anti-wind-up `{s['saturation']}` (see [hyrl.md](hyrl.md)).",
         "",
         f"Every run's greedy policy is rolled out from {d['initial_states']} initial positions evenly spaced over "
-        "the spec's initial range and judged by the checker (`mitlc.criteria`: overshoot, 10-90% rise time). "
+        "the spec's initial range and judged by the checker (`mitlc.criteria`: overshoot, 10-90% rise time, "
+        "settling time, steady-state error). "
         "A rollout **succeeds** when it meets every requirement *and* stabilises: it ends within 10% of the "
         "step from the set-point (the width of the thesis's S band; without it, a controller that never moves "
         "has no overshoot). **Success rate**: the fraction of runs whose rollouts succeed from *all* initial "
@@ -367,6 +389,12 @@ def markdown(d: dict, args) -> str:
         if "runs_without_overshoot_step_ge_0.1" in r:
             extra += (f"; runs with no overshoot from every |q0| >= 0.1: "
                       f"{pct(r['runs_without_overshoot_step_ge_0.1'])}")
+        for name, unit in (("settling_time", "s"), ("steady_state_error", "m")):
+            if f"{name}_median_step_ge_0.1" in r:
+                med, worst = r[f"{name}_median_step_ge_0.1"], r[f"{name}_max_step_ge_0.1"]
+                extra += (f"; {name.replace('_', ' ')} from |q0| >= 0.1: median "
+                          + (f"{med:.3g} {unit}" if med is not None else "never") + ", largest "
+                          + (f"{worst:.3g} {unit}" if worst is not None else "unbounded (some never settle)"))
         extra += f"; rollouts that stabilise: {pct(r['stabilised_state_rate'])}"
         if "brake_bound_state_rate" in r:
             extra += (f"; braking at the bound from the state handed over to E_Mp would avoid the overshoot "
@@ -387,6 +415,10 @@ def markdown(d: dict, args) -> str:
     ]
     if any(r["method"].startswith("HyRL, trained directly") for r in d["rows"]):
         lines += ["![overshoot and rise time, trained directly](figures/hyrl/learning_overshoot_rise_time.png)", ""]
+    for r in d["rows"]:
+        if r["method"] == "HyRL (beyond the thesis)":
+            name = Path(r["spec"]).stem
+            lines += [f"![{name.replace('_', ' ')} (beyond the thesis)](figures/hyrl/learning_{name}.png)", ""]
     lines += [
         "## Greedy rollouts (background: mode, like Figure 3-7)",
         "",
@@ -410,6 +442,10 @@ def markdown(d: dict, args) -> str:
         "![B-3](figures/hyrl/automaton_overshoot_rise_time.svg)",
         "",
     ]
+    for r in d["rows"]:
+        if r["method"] == "HyRL (beyond the thesis)":
+            name = Path(r["spec"]).stem
+            lines += [f"![{name.replace('_', ' ')}](figures/hyrl/automaton_{name}.svg)", ""]
     return "\n".join(lines)
 
 
