@@ -37,6 +37,7 @@ velocity span of the grid, the critic's initial value, anti-wind-up), as in
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import time
@@ -938,8 +939,20 @@ def compose(
     return ComposedController(automaton, chosen, plant, params, n_steps)
 
 
+HANDOVER_SIGMA = 2.0
+"""Exploration (N) of :func:`train_handover` by default: twice the learners' 1 N.  The
+handed-over mass arrives at up to 3 m/s and stopping it takes inputs near the bound,
+which 1 N of exploration around a policy trained on slow arrivals finds slowly.
+Measured (20 runs; runs succeeding from all 50 states / states, against the brake
+bound, the most any overshoot policy could do): seed 0, 1 N: 0.35 / 0.80 after 800
+trials, 0.40 / 0.82 after 3200; 2 N: 0.45 / 0.87 after 400, at the bound (0.45 / 0.87);
+seed 1, 800 trials: 1 N 0.25 / 0.81, 2 N 0.35 / 0.825, bound 0.35 / 0.83.  See
+docs/hyrl.md."""
+
+
 def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
-                   callback: Callable[[int, np.ndarray], None] | None = None
+                   callback: Callable[[int, np.ndarray], None] | None = None,
+                   sigma: float | None = HANDOVER_SIGMA,
                    ) -> tuple[ComposedController, HybridLearner]:
     """Go on training ``learner``'s policies of the modes it runs in ``ctl`` from the
     states the other modes hand over (beyond the thesis, see docs/hyrl.md).
@@ -947,14 +960,20 @@ def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
     Each trial starts from the combined spec's initial range; the modes run by other
     learners act greedily (no exploration, no learning); in the modes run by
     ``learner`` it explores and learns with standard actor-critic on its own critic,
-    features and settings, with the combined automaton's mode-wise rewards.  Works on
-    a copy: returns the new controller and the retrained copy of ``learner``.
+    features and settings, with the combined automaton's mode-wise rewards, but
+    exploring with ``sigma`` (N; ``None``: the learner's own, see
+    :data:`HANDOVER_SIGMA`).  Works on a copy: returns the new controller and the
+    retrained copy of ``learner`` (whose settings then name that ``sigma``).
     """
     import copy
 
     if not any(lrn is learner for lrn, _ in ctl.assignment.values()):
         raise TrainingError("train_handover: the learner runs no mode of the composition")
+    if sigma is not None and not (math.isfinite(sigma) and sigma >= 0):
+        raise TrainingError(f"train_handover: sigma must be a non-negative number, got {sigma}")
     lrn = copy.deepcopy(learner)
+    if sigma is not None:
+        lrn.settings = dataclasses.replace(lrn.settings, sigma=float(sigma))
     assignment = {m: ((lrn if l is learner else l), s) for m, (l, s) in ctl.assignment.items()}
     new = ComposedController(ctl.automaton, assignment, ctl.plant, ctl.params, ctl.n_steps)
     if new.runs != lrn.runs:

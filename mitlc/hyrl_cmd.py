@@ -378,14 +378,16 @@ def simulate_hybrid(policy_dirs: Sequence[str], spec_path: str | None, rollouts:
               help="Initial positions, evenly spaced over SPEC's initial range.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Write rollouts of run 0 with the mode as background colour here (PNG).")
+@click.option("--handover-sigma", type=click.FloatRange(0, None), default=None,
+              help="Exploration (N) of the --handover-trials retraining (default 2, twice the learners').")
 @click.option("--handover-trials", type=click.IntRange(0, 1_000_000), default=0, show_default=True,
               help="Beyond the thesis: first retrain the policies of S, P and the last evaluating mode "
                    "for this many trials from the states the earlier modes hand over (0: plain composition).")
 @handle_errors
 def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None,
-                handover_trials: int = 0) -> None:
+                handover_trials: int = 0, handover_sigma: float | None = None) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
-    from mitlc.hyrl import brake_bound, compose, train_handover
+    from mitlc.hyrl import HANDOVER_SIGMA, brake_bound, compose, train_handover
     from mitlc.parse import load_spec
     from mitlc.plots import png_bytes
 
@@ -396,7 +398,8 @@ def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path:
         click.echo(f"mode {mode:<5} policy {src}")
     if handover_trials:
         last = ctl.assignment["S"][0]
-        ctl, _ = train_handover(ctl, last, handover_trials)
+        ctl, _ = train_handover(ctl, last, handover_trials,
+                                sigma=HANDOVER_SIGMA if handover_sigma is None else handover_sigma)
         click.echo(f"retrained {Path(last.spec.path or 'spec').stem}'s modes for {handover_trials} trials "
                    "from the handed-over states")
     ev = ctl.evaluate(n_init)
