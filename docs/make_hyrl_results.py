@@ -33,7 +33,15 @@ sys.path.insert(0, str(ROOT))
 
 from mitlc.automaton import compile_requirements, render_bytes  # noqa: E402
 from mitlc.fileio import atomic_write  # noqa: E402
-from mitlc.hyrl import HybridLearner, HyrlSettings, brake_bound, compose, evaluate, train_handover  # noqa: E402
+from mitlc.hyrl import (  # noqa: E402
+    HANDOVER_SIGMA,
+    HybridLearner,
+    HyrlSettings,
+    brake_bound,
+    compose,
+    evaluate,
+    train_handover,
+)
 from mitlc.hyrl_cmd import SMALL_STEP, rollout_mode_figure  # noqa: E402
 from mitlc.parse import load_spec  # noqa: E402
 from mitlc.plots import learning_curve, png_bytes  # noqa: E402
@@ -188,7 +196,8 @@ def main() -> None:
     rows.append(row_of("overshoot_rise_time", "composed, overshoot modes retrained on the handovers", combined,
                        ctl_h.runs, args.trials_overshoot, ev_h, time.perf_counter() - start,
                        note="beyond the thesis (docs/hyrl.md): E_Mp, S and P of the overshoot learner trained "
-                            "on, from the states the rise-time policies hand over; I and E_tr as composed"))
+                            f"on, from the states the rise-time policies hand over, exploring with {HANDOVER_SIGMA} N "
+                            "(`mitlc.hyrl.HANDOVER_SIGMA`); I and E_tr as composed"))
     rows[-1]["brake_bound_state_rate"] = float(bound.mean())
     rows[-1]["brake_bound_success_rate"] = float(bound.all(axis=1).mean())
     evs["composed_handover"] = ev_h
