@@ -398,10 +398,10 @@ def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path:
         click.echo(f"mode {mode:<5} policy {src}")
     if handover_trials:
         last = ctl.assignment["S"][0]
-        ctl, _ = train_handover(ctl, last, handover_trials,
-                                sigma=HANDOVER_SIGMA if handover_sigma is None else handover_sigma)
+        sigma = HANDOVER_SIGMA if handover_sigma is None else handover_sigma
+        ctl, _ = train_handover(ctl, last, handover_trials, sigma=sigma)
         click.echo(f"retrained {Path(last.spec.path or 'spec').stem}'s modes for {handover_trials} trials "
-                   "from the handed-over states")
+                   f"from the handed-over states, exploring with {sigma:g} N")
     ev = ctl.evaluate(n_init)
     for r in range(ctl.runs):
         click.echo(f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "

@@ -93,8 +93,15 @@ def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
                                            "--policy", str(tmp_path / "over"), "--initial-states", "2",
                                            "--handover-trials", "2"])
     assert res.exit_code == 0, res.output
-    assert "retrained overshoot's modes for 2 trials" in res.output
+    assert "retrained overshoot's modes for 2 trials from the handed-over states, exploring with 2 N" in res.output
     assert res.output.count("initial states succeed") == 2
+    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
+                                           "--policy", str(tmp_path / "over"), "--initial-states", "2",
+                                           "--handover-trials", "2", "--handover-sigma", "0.5"])
+    assert res.exit_code == 0 and "exploring with 0.5 N" in res.output
+    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
+                                           "--policy", str(tmp_path / "over"), "--handover-sigma", "-1"])
+    assert res.exit_code == 2 and "--handover-sigma" in res.output and "Traceback" not in res.output
     res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "over")])
     assert res.exit_code == 2
     assert "overshoot_rise_time.mitl: error: no learned policy for mode(s) I, E_tr" in res.output
