@@ -153,6 +153,12 @@ class SacpnSettings:
         check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma_frac"))
         if any(n < 1 for n in self.rbf):
             raise TrainingError("rbf needs at least one centre per variable")
+        if self.sigma is not None and not (math.isfinite(self.sigma) and self.sigma >= 0):
+            raise TrainingError(f"sigma must be a non-negative number, got {self.sigma}")
+        for name in ("trial_s", "dt"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise TrainingError(f"{name} must be positive, got {v}")
 
 
 # ---------------------------------------------------------------- features

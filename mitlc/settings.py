@@ -15,13 +15,24 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Iterable, Mapping, TypeVar
+import typing
+from typing import Any, Callable, Iterable, Mapping, TypeVar
 
 import numpy as np
 
-from mitlc.errors import TrainingError
+from mitlc.errors import InputError, TrainingError
 
-__all__ = ["to_dict", "from_dict", "check_fraction", "check_non_negative", "json_default"]
+__all__ = [
+    "to_dict",
+    "from_dict",
+    "check_fraction",
+    "check_non_negative",
+    "json_default",
+    "parse_finite",
+    "parser_for",
+    "setting_parsers",
+    "parse_assignments",
+]
 
 T = TypeVar("T")
 
@@ -66,3 +77,118 @@ def json_default(o: Any) -> Any:
     if isinstance(o, np.integer):
         return int(o)
     raise TypeError(type(o).__name__)
+
+
+# ---------------------------------------------------------------- settings written as text
+
+
+def parse_finite(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"'{text}' is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"'{text}' is not a finite number")
+    return v
+
+
+def _parse_bool(text: str) -> bool:
+    t = text.lower()
+    if t in ("true", "yes", "on", "1"):
+        return True
+    if t in ("false", "no", "off", "0"):
+        return False
+    raise ValueError(f"'{text}' is not true or false")
+
+
+def _parse_counts(text: str) -> tuple[int, ...]:
+    try:
+        counts = tuple(int(p) for p in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"'{text}' is not a grid size such as 10x10") from None
+    return counts
+
+
+def _parse_bounds(text: str) -> tuple[tuple[str, float, float], ...]:
+    if text.lower() == "none":
+        return ()
+    out = []
+    for part in text.split("+"):
+        bits = part.split(":")
+        if len(bits) != 3 or not bits[0]:
+            raise ValueError(f"'{part}' is not a range such as qdot:-20:20")
+        out.append((bits[0], parse_finite(bits[1]), parse_finite(bits[2])))
+    return tuple(out)
+
+
+def _fixed_counts(n: int) -> Callable[[str], tuple[int, ...]]:
+    def p(text: str) -> tuple[int, ...]:
+        counts = _parse_counts(text)
+        if len(counts) != n:
+            raise ValueError(f"'{text}' is not {n} counts such as {'x'.join(['10'] * n)}")
+        return counts
+
+    return p
+
+
+def _optional(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    def p(text: str) -> Any:
+        return None if text.lower() in ("none", "default") else parse(text)
+
+    return p
+
+
+def parser_for(hint: Any) -> Callable[[str], Any] | None:
+    """A value parser for a settings field of type ``hint``, or None if it cannot be swept."""
+    if hint is float:
+        return parse_finite
+    if hint is int:
+        return int
+    if hint is bool:
+        return _parse_bool
+    if hint is str:
+        return str
+    args = typing.get_args(hint)
+    if type(None) in args and len(args) == 2:
+        inner = parser_for(next(a for a in args if a is not type(None)))
+        return _optional(inner) if inner else None
+    if typing.get_origin(hint) is tuple:
+        if args == (int, Ellipsis):
+            return _parse_counts
+        if args and all(a is int for a in args):  # a fixed number of counts, e.g. tuple[int, int, int]
+            return _fixed_counts(len(args))
+        if len(args) == 2 and args[1] is Ellipsis and typing.get_args(args[0]) == (str, float, float):
+            return _parse_bounds
+    return None
+
+
+def setting_parsers(cls: type) -> dict[str, Callable[[str], Any]]:
+    """Every field of the settings dataclass ``cls`` and the parser of its values written as text
+    (``mitlc sweep --grid``, ``mitlc train --set``)."""
+    hints = typing.get_type_hints(cls)
+    out = {}
+    for f in dataclasses.fields(cls):
+        parse = parser_for(hints[f.name])
+        if parse is None:  # pragma: no cover - a new field of a type this module does not know
+            raise TypeError(f"{cls.__name__}.{f.name}: no parser for {hints[f.name]}")
+        out[f.name] = parse
+    return out
+
+
+def parse_assignments(cls: type[T], items: Iterable[str], option: str = "--set") -> dict[str, Any]:
+    """``NAME=VALUE`` texts as typed values of ``cls``'s fields; a bad name or value is an
+    :class:`InputError` naming ``option`` (never ``eval``: each field has its parser)."""
+    parsers = setting_parsers(cls)
+    out: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name, text = name.strip(), text.strip()
+        if not sep or not name:
+            raise InputError(f"'{item}' is not NAME=VALUE", file=option)
+        if name not in parsers:
+            raise InputError(f"unknown setting '{name}' (known: {', '.join(parsers)})", file=option)
+        try:
+            out[name] = parsers[name](text)
+        except ValueError as exc:
+            raise InputError(f"{name}: {exc}", file=option) from None
+    return out

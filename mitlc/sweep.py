@@ -42,11 +42,9 @@ import hashlib
 import io
 import itertools
 import json
-import math
 import os
 import socket
 import time
-import typing
 from collections import Counter, deque
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,6 +54,7 @@ from mitlc import ast as A
 from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import atomic_write
 from mitlc.spec import OPTIONS, Spec
+from mitlc.settings import parse_finite, setting_parsers
 
 __all__ = [
     "WeightSite",
@@ -206,86 +205,11 @@ def format_value(v: Any) -> str:
     return str(v)
 
 
-def _finite(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise ValueError(f"'{text}' is not a number") from None
-    if not math.isfinite(v):
-        raise ValueError(f"'{text}' is not a finite number")
-    return v
-
-
-def _parse_bool(text: str) -> bool:
-    t = text.lower()
-    if t in ("true", "yes", "on", "1"):
-        return True
-    if t in ("false", "no", "off", "0"):
-        return False
-    raise ValueError(f"'{text}' is not true or false")
-
-
-def _parse_counts(text: str) -> tuple[int, ...]:
-    try:
-        counts = tuple(int(p) for p in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"'{text}' is not a grid size such as 10x10") from None
-    return counts
-
-
-def _parse_bounds(text: str) -> tuple[tuple[str, float, float], ...]:
-    if text.lower() == "none":
-        return ()
-    out = []
-    for part in text.split("+"):
-        bits = part.split(":")
-        if len(bits) != 3 or not bits[0]:
-            raise ValueError(f"'{part}' is not a range such as qdot:-20:20")
-        out.append((bits[0], _finite(bits[1]), _finite(bits[2])))
-    return tuple(out)
-
-
-def _optional(parse: Callable[[str], Any]) -> Callable[[str], Any]:
-    def p(text: str) -> Any:
-        return None if text.lower() in ("none", "default") else parse(text)
-
-    return p
-
-
-def _parser_for(hint: Any) -> Callable[[str], Any] | None:
-    """A value parser for a settings field of type ``hint``, or None if it cannot be swept."""
-    if hint is float:
-        return _finite
-    if hint is int:
-        return int
-    if hint is bool:
-        return _parse_bool
-    if hint is str:
-        return str
-    args = typing.get_args(hint)
-    if type(None) in args and len(args) == 2:
-        inner = _parser_for(next(a for a in args if a is not type(None)))
-        return _optional(inner) if inner else None
-    if typing.get_origin(hint) is tuple:
-        if args == (int, Ellipsis):
-            return _parse_counts
-        if len(args) == 2 and args[1] is Ellipsis and typing.get_args(args[0]) == (str, float, float):
-            return _parse_bounds
-    return None
-
-
 def sweepable_settings() -> dict[str, Callable[[str], Any]]:
     """Every :class:`SacpnSettings` field and the parser of its grid values."""
     from mitlc.sacpn import SacpnSettings
 
-    hints = typing.get_type_hints(SacpnSettings)
-    out = {}
-    for f in dataclasses.fields(SacpnSettings):
-        parse = _parser_for(hints[f.name])
-        if parse is None:  # pragma: no cover - a new field of a type this module does not know
-            raise TypeError(f"SacpnSettings.{f.name}: no grid parser for {hints[f.name]}")
-        out[f.name] = parse
-    return out
+    return setting_parsers(SacpnSettings)
 
 
 def _check_setting(name: str, value: Any) -> None:
@@ -363,7 +287,7 @@ def parse_grid(items: Sequence[str], spec: Spec) -> tuple[Axis, ...]:
                                       hint="mitlc sweep SPEC --list shows each weight's subformula")
                 raise _axis_error(f"the formula has no weight '{name}' (weights: {weight_names})",
                                   hint="mitlc sweep SPEC --list shows each weight's subformula")
-            kind, key, parse = "weight", wname, _finite
+            kind, key, parse = "weight", wname, parse_finite
         elif name.startswith("option."):
             key = name[len("option."):]
             if key not in OPTIONS:

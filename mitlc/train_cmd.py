@@ -71,6 +71,21 @@ def _settings_from_options(base, **opts):
     return dataclasses.replace(base, **values)
 
 
+def _checked(settings, assignments, options):
+    """``settings`` after their own range checks; a failure names the option that set the
+    value (``--sigma``, ... from ``options``, else ``--set``)."""
+    from mitlc.errors import TrainingError
+
+    try:
+        settings.check()
+    except TrainingError as exc:
+        name = exc.message.split(" ", 1)[0].strip("'")
+        given = {k for k, v in options.items() if v is not None}
+        where = f"--{name.replace('_', '-')}" if name in given else "--set" if assignments else "mitlc train"
+        raise InputError(exc.message, file=where) from None
+    return settings
+
+
 def _region_track(agent, codes: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """Index of the marked place of the first state sub-net per sample, and the place names."""
     rt = agent.runtime
@@ -162,16 +177,20 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
               help="Update masking: current = M_k (gradient, default), next = M_k+1 (Algorithm 1 as printed).")
 @click.option("--saturation", type=click.Choice(["applied", "none"]), default=None,
               help="Actor anti-wind-up: applied (default) or none (the thesis's update).")
+@click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
+              help="Any trainer setting (repeat), e.g. --set alpha_a=0.08 --set rbf=10x10x5: SacpnSettings "
+                   "for a formula spec, HyrlSettings for a 'require' spec (docs/training.md, docs/hyrl.md).")
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @handle_errors
 def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjunction, violations, penalty_ramp,
-          sigma, mask, saturation, no_plots, quiet) -> None:
+          sigma, mask, saturation, assignments, no_plots, quiet) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
     from tqdm import tqdm
 
     from mitlc.compile import CompileOptions, compile_spec
     from mitlc.sacpn import Sacpn, SacpnSettings, read_meta
+    from mitlc.settings import parse_assignments
 
     meta = None
     if resume_dir is not None:
@@ -202,10 +221,15 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
         from mitlc.hyrl_cmd import train_hybrid_cli
 
         overrides = {k: v for k, v in (("sigma", sigma), ("saturation", saturation)) if v is not None}
-        train_hybrid_cli(spec, runs, trials, seed, out, progress=not quiet, settings=HyrlSettings(**overrides),
+        overrides.update(parse_assignments(HyrlSettings, assignments))
+        hyrl_settings = _checked(HyrlSettings(**overrides), assignments, {"sigma": sigma, "saturation": saturation})
+        train_hybrid_cli(spec, runs, trials, seed, out, progress=not quiet, settings=hyrl_settings,
                          plots=not no_plots, resume=resume_dir)
         return
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
+    settings = _checked(_settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
+                        assignments, {"sigma": sigma, "mask": mask, "saturation": saturation,
+                                      "penalty_ramp": penalty_ramp})
     rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
     agent = Sacpn(rs, settings, runs=runs, seed=seed)
     wall_before = 0.0

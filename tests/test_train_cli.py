@@ -116,3 +116,39 @@ def test_diverging_training_is_a_clean_error(short_spec, tmp_path, monkeypatch):
                                     "--out", str(tmp_path / "o"), "-q"])
     assert res.exit_code == 2
     assert "diverged" in res.output
+
+
+def test_set_overrides_any_trainer_setting_sacpn_and_hyrl(short_spec, spec_dir, tmp_path):
+    out = tmp_path / "sacpn"
+    res = run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots",
+              "--set", "rbf=5x4", "--set", "sigma_frac=0.2", "--set", "bootstrap_timeout=false")
+    assert res.exit_code == 0, res.output
+    s = json.loads((out / "metrics.json").read_text())["settings"]
+    assert s["rbf"] == [5, 4] and s["sigma_frac"] == 0.2 and s["bootstrap_timeout"] is False
+    out = tmp_path / "hyrl"
+    res = run("train", "--spec", spec_dir / "mass_damper" / "overshoot.mitl", "--runs", 1, "--trials", 1,
+              "--out", out, "-q", "--no-plots", "--set", "alpha_a=0.08", "--set", "rbf=6x6x3", "--set", "q_warp=none")
+    assert res.exit_code == 0, res.output
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["settings"]["alpha_a"] == 0.08 and m["settings"]["q_warp"] is None and m["n_features"] == 108
+
+
+@pytest.mark.parametrize(
+    "spec, args, message",
+    [
+        ("short", ("--set", "alpha=1"), "--set: error: unknown setting 'alpha' (known: gamma, lam,"),
+        ("short", ("--set", "gamma"), "--set: error: 'gamma' is not NAME=VALUE"),
+        ("short", ("--set", "gamma=high"), "--set: error: gamma: 'high' is not a number"),
+        ("short", ("--set", "gamma=3"), "--set: error: gamma must be in [0, 1], got 3.0"),
+        ("short", ("--sigma", "-1"), "--sigma: error: sigma must be a non-negative number, got -1.0"),
+        ("overshoot", ("--set", "rbf=10x10"), "--set: error: rbf: '10x10' is not 3 counts such as 10x10x10"),
+        ("overshoot", ("--set", "q_warp=2"), "--set: error: q_warp must be in (0, 1], got 2.0"),
+    ],
+)
+def test_bad_settings_are_one_line_errors_naming_the_option(short_spec, spec_dir, tmp_path, spec, args, message):
+    path = short_spec if spec == "short" else spec_dir / "mass_damper" / "overshoot.mitl"
+    res = CliRunner().invoke(main, ["train", "--spec", str(path), "--runs", "1", "--trials", "1", "-q",
+                                    "--no-plots", "--out", str(tmp_path / "o"), *args])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().startswith(message) and len(res.output.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
