@@ -7,8 +7,8 @@ The tables of docs/hyrl.md ("Why whole sides crept ...") were made with it, e.g.
     python docs/hyrl_variant.py rise_time --trials 2000 --seed 1 --set q_warp=0.5
 
 (about 35 s per overshoot line and 190 s per rise-time line with 20 runs, one core).
-``--set name=value`` overrides a :class:`mitlc.hyrl.HyrlSettings` field (value read as
-JSON, else as a string).  Printed: ``success`` (runs whose greedy policy succeeds from
+``--set name=value`` overrides a :class:`mitlc.hyrl.HyrlSettings` field (read by the
+field's type, as ``mitlc train --set``).  Printed: ``success`` (runs whose greedy policy succeeds from
 every initial state with ``|q0| >= 0.1``, of 50 evenly spaced), ``states`` (successful
 (run, state) pairs among those), ``states_all`` (all 50), ``overshoot`` and
 ``unstable`` (pairs with ``|q0| >= 0.1`` that fail the criteria / meet them but do not
@@ -35,20 +35,7 @@ sys.path.insert(0, str(ROOT))
 from mitlc.errors import MitlError  # noqa: E402
 from mitlc.hyrl import HybridLearner, HyrlSettings, evaluate  # noqa: E402
 from mitlc.parse import load_spec  # noqa: E402
-
-
-def parse_set(items: list[str]) -> dict:
-    out = {}
-    for item in items:
-        name, sep, text = item.partition("=")
-        if not sep:
-            raise SystemExit(f"hyrl_variant.py: error: --set {item}: expected name=value")
-        try:
-            value = json.loads(text)
-        except json.JSONDecodeError:
-            value = text
-        out[name] = tuple(value) if isinstance(value, list) else value
-    return out
+from mitlc.settings import parse_assignments  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -59,24 +46,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--set", dest="sets", action="append", default=[], metavar="NAME=VALUE")
     args = ap.parse_args(argv)
-    kw = parse_set(args.sets)
     try:
+        kw = parse_assignments(HyrlSettings, args.sets)
         settings = HyrlSettings(**kw)
-    except TypeError as exc:
-        raise SystemExit(f"hyrl_variant.py: error: --set: {exc}") from None
-    try:
         spec = load_spec(ROOT / "specs" / "mass_damper" / f"{args.spec}.mitl")
         learner = HybridLearner(spec, settings, runs=args.runs, seed=args.seed)
         start = time.perf_counter()
         returns = learner.train(args.trials)
     except MitlError as exc:
-        raise SystemExit(f"hyrl_variant.py: error: {exc}") from None
+        print(f"hyrl_variant.py: {exc}", file=sys.stderr)
+        return 2
     ev = evaluate(learner)
     big = np.abs(ev.q0) >= 0.1
     ok = ev.ok()
     eighth = max(1, args.trials // 8)
     print(json.dumps(dict(
-        spec=args.spec, seed=args.seed, runs=args.runs, trials=args.trials, set=kw, q_warp=learner.q_warp,
+        spec=args.spec, seed=args.seed, runs=args.runs, trials=args.trials, set={k: list(v) if isinstance(v, tuple) else v for k, v in kw.items()}, q_warp=learner.q_warp,
         success=round(ev.success_rate(big), 2), states=round(ev.state_rate(big), 3),
         states_all=round(ev.state_rate(), 3),
         overshoot=round(float((~ev.passed[:, big]).mean()), 3),
