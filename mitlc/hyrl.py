@@ -69,6 +69,10 @@ __all__ = [
     "compose",
     "load_learner",
     "STABLE_FRACTION",
+    "stabilised",
+    "brake_bound",
+    "train_handover",
+    "HANDOVER_SIGMA",
 ]
 
 
@@ -253,26 +257,20 @@ class GridFeatures:
             self.centres.append(c)
             self.inv_w2.append(1.0 / (2.0 * (width * spacing) ** 2))
 
-    def warp(self, i: int, z: np.ndarray) -> np.ndarray:
-        """Variable ``i``'s values in the coordinate its centres are even in."""
+    def warp(self, i: int, z: np.ndarray, inverse: bool = False) -> np.ndarray:
+        """Variable ``i``'s values in the coordinate its centres are even in (``inverse``:
+        back from that coordinate to the variable's own units)."""
         w = self.warps[i]
         if w is None:
             return z
         o, power = w
         lo, hi = self.bounds[i]
         D = max(o - lo, hi - o)
-        return o + np.sign(z - o) * D * (np.abs(z - o) / D) ** power
+        return o + np.sign(z - o) * D * (np.abs(z - o) / D) ** (1.0 / power if inverse else power)
 
     def centres_in(self, i: int) -> np.ndarray:
         """Variable ``i``'s centres in its own units."""
-        w = self.warps[i]
-        if w is None:
-            return self.centres[i]
-        o, power = w
-        lo, hi = self.bounds[i]
-        D = max(o - lo, hi - o)
-        c = self.centres[i]
-        return o + np.sign(c - o) * D * (np.abs(c - o) / D) ** (1.0 / power)
+        return self.warp(i, self.centres[i], inverse=True)
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         """Features ``(R, F)`` of ``z (R, len(names))``."""
@@ -759,6 +757,12 @@ class Evaluation:
         return float(self.ok(stable)[:, self._sel(where)].mean())
 
 
+def stabilised(automaton: HybridAutomaton, ro: HybridRollout) -> np.ndarray:
+    """``(B,)``: each rollout ends within :data:`STABLE_FRACTION` of its step from the set-point."""
+    s = automaton.setpoint
+    return np.abs(ro.states[:, -1, 0] - s) <= STABLE_FRACTION * np.abs(ro.states[:, 0, 0] - s)
+
+
 def _judge(spec_or_automaton: Spec | HybridAutomaton, ro: HybridRollout) -> Verdict:
     if isinstance(spec_or_automaton, HybridAutomaton):
         return check(spec_or_automaton.requirements, ro.states[:, :, 0], ro.dt, spec_or_automaton.setpoint)
@@ -777,13 +781,10 @@ def _grid_evaluation(automaton: HybridAutomaton, runs: int, n_init: int,
     ro = roll(x0, run)
     v = _judge(automaton, ro)
     shape = (R, n_init)
-    s = automaton.setpoint
-    final = ro.states[:, -1, 0]
-    stabilised = np.abs(final - s) <= STABLE_FRACTION * np.abs(x0[:, 0] - s)
     return Evaluation(
         q0=q0,
         passed=v.all.reshape(shape),
-        stabilised=stabilised.reshape(shape),
+        stabilised=stabilised(automaton, ro).reshape(shape),
         measured={k: m.reshape(shape) for k, m in v.measured.items()},
         passed_each={k: p.reshape(shape) for k, p in v.passed.items()},
         visited_p=ro.visited("P").reshape(shape),
@@ -996,6 +997,7 @@ def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
         noise = lrn.exploration_noise(N, dt)
         q0 = x[:, 0].copy()
         mode, t = A.reset(x)
+        phi = lrn.phi(x, q0, t, 0.0)
         e = np.zeros_like(theta)
         ret = np.zeros(R)
         for k in range(N):
@@ -1006,7 +1008,6 @@ def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
             a = np.where(act, u_sat + noise[k], u_sat)
             a = np.clip(a, -u_max, u_max) if applied else a
             du = a - u_sat
-            phi = lrn.phi(x, q0, t, k * dt)
             x = plant.step(x, np.clip(a, -u_max, u_max), params)
             mode1, t1, r = A.step(mode, t, x, q0, (k + 1) * dt, dt)
             ret += r
@@ -1027,7 +1028,7 @@ def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
             e[ra, lm[act]] += phi[act]
             e[ra, G] += phi[act]
             theta += (a_c * delta)[:, None, None] * e
-            mode, t = mode1, t1
+            mode, t, phi = mode1, t1, phi1
         if not (np.isfinite(xi).all() and np.isfinite(theta).all()):
             raise TrainingError("train_handover: a parameter diverged")
         if callback is not None:

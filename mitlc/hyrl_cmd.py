@@ -171,6 +171,7 @@ def metrics_of(learner, ev, wall_s: float) -> dict:
         "success_rate_by_requirement": {k: float(p.all(axis=1).mean()) for k, p in ev.passed_each.items()},
         f"success_rate_step_ge_{SMALL_STEP}": ev.success_rate(big) if big.any() else None,
         f"state_success_rate_step_ge_{SMALL_STEP}": ev.state_rate(big) if big.any() else None,
+        f"initial_states_step_ge_{SMALL_STEP}": int(big.sum()),
         "runs_succeeding": [bool(v) for v in ev.run_success()],
         "visited_p_rate": float(ev.visited_p.mean()),
         "measured": measured,
@@ -264,10 +265,8 @@ def train_hybrid_cli(
         sys.exit(130)
     # the summary line, like SACPN's (also under -q: only the progress bar is quiet)
     big = metrics.get(f"success_rate_step_ge_{SMALL_STEP}")
-    all_states = metrics.get("initial_states", 0)
-    n_big = int((np.abs(np.linspace(*learner.automaton.q0_range, all_states) - learner.automaton.setpoint)
-                 >= SMALL_STEP).sum()) if all_states else 0
-    small = ("" if big is None or n_big == all_states
+    n_big = metrics.get(f"initial_states_step_ge_{SMALL_STEP}")
+    small = ("" if big is None or n_big == metrics.get("initial_states", 0)
              else f"; {big:.2f} from the {n_big} at least {SMALL_STEP} from the set-point")
     click.echo(
         f"{learner.runs} runs x {learner.trial} trials in {wall:.1f} s; "
@@ -330,7 +329,7 @@ def simulate_hybrid(policy_dirs: Sequence[str], spec_path: str | None, rollouts:
     """``mitlc simulate`` for HyRL policies: greedy rollouts from random initial states of the
     spec's set, judged by the checker.  One policy runs on its own automaton (or on ``--spec``'s);
     several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
-    from mitlc.hyrl import STABLE_FRACTION, _judge, compose
+    from mitlc.hyrl import _judge, compose, stabilised
     from mitlc.plots import png_bytes
 
     learners = _load_learners(policy_dirs)
@@ -349,8 +348,7 @@ def simulate_hybrid(policy_dirs: Sequence[str], spec_path: str | None, rollouts:
     run = np.arange(n) % runs
     ro = runner.rollout(x0, run)
     verdict = _judge(automaton, ro)
-    s = automaton.setpoint
-    stable = np.abs(ro.states[:, -1, 0] - s) <= STABLE_FRACTION * np.abs(x0[:, 0] - s)
+    stable = stabilised(automaton, ro)
     ok = verdict.all & stable
     for i in range(n):
         parts = []

@@ -54,6 +54,7 @@ def test_train_hybrid_cli_writes_everything(spec_dir, tmp_path, capsys):
     assert on_disk == json.loads(json.dumps(m))
     assert np.array(on_disk["returns"]).shape == (2, 3)
     assert on_disk["initial_states"] == 5 and 0.0 <= on_disk["success_rate"] <= 1.0
+    assert on_disk["initial_states_step_ge_0.1"] == 4
     assert set(on_disk["success_rate_by_requirement"]) == {"overshoot"}
     assert on_disk["interrupted"] is False and on_disk["wall_s"] > 0
     learner = load_learner(out / "params.npz")
