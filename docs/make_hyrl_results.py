@@ -186,8 +186,9 @@ def main() -> None:
                        time.perf_counter() - start,
                        note="no training: " + ", ".join(f"{m} from {src}" for m, src in ctl.describe().items())))
     bound = brake_bound(ev_c, ctl.automaton, ctl.plant, ctl.params)
-    rows[-1]["brake_bound_state_rate"] = float(bound.mean())
-    rows[-1]["brake_bound_success_rate"] = float(bound.all(axis=1).mean())
+    bound_rates = {"brake_bound_state_rate": float(bound.mean()),
+                   "brake_bound_success_rate": float(bound.all(axis=1).mean())}
+    rows[-1].update(bound_rates)
     evs["composed"] = ev_c
     # beyond the thesis: the overshoot learner's modes retrained from the rise-time handovers
     start = time.perf_counter()
@@ -198,8 +199,7 @@ def main() -> None:
                        note="beyond the thesis (docs/hyrl.md): E_Mp, S and P of the overshoot learner trained "
                             f"on, from the states the rise-time policies hand over, exploring with {HANDOVER_SIGMA} N "
                             "(`mitlc.hyrl.HANDOVER_SIGMA`); I and E_tr as composed"))
-    rows[-1]["brake_bound_state_rate"] = float(bound.mean())
-    rows[-1]["brake_bound_success_rate"] = float(bound.all(axis=1).mean())
+    rows[-1].update(bound_rates)  # the same handovers: the same bound
     evs["composed_handover"] = ev_h
     if not args.no_direct:
         spec, learner, ev, eval_s = train("overshoot_rise_time", args.runs, args.trials_rise, args.seed, settings,
