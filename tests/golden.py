@@ -1,0 +1,104 @@
+"""Golden outputs of the CLI: what must not change when the code is only moved.
+
+``python tests/golden.py`` (re)writes ``tests/fixtures/golden/``; ``tests/test_golden.py``
+runs the same commands and compares. Regenerate only for a change that is meant to alter
+these outputs, and say so in the commit.
+
+Each case is a ``mitlc`` command line; ``{out}`` is a fresh folder. A case keeps the
+command's standard output (compile, automaton), or the ``metrics.json`` (less its wall
+time) and ``params.npz`` a training writes.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from click.testing import CliRunner
+
+ROOT = Path(__file__).resolve().parent.parent
+GOLDEN = ROOT / "tests" / "fixtures" / "golden"
+
+PENDULUM = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "specs" / "pendulum").rglob("*.mitl"))
+MASS_DAMPER = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "specs" / "mass_damper").glob("*.mitl"))
+
+CASES: dict[str, list[str]] = {}
+for _spec in PENDULUM:
+    _name = _spec.removeprefix("specs/").removesuffix(".mitl").replace("/", "-")
+    CASES[f"compile-{_name}"] = ["compile", _spec, "--format", "json"]
+    CASES[f"compile-{_name}-permanent"] = ["compile", _spec, "--format", "json", "--violations", "permanent"]
+CASES["compile-p4-active-counted"] = [
+    "compile", "specs/pendulum/p4_alternate.mitl", "--format", "json",
+    "--conjunction", "active", "--violations", "counted",
+]
+for _spec in MASS_DAMPER:
+    _name = _spec.removeprefix("specs/").removesuffix(".mitl").replace("/", "-")
+    CASES[f"automaton-{_name}"] = ["automaton", _spec, "--format", "json"]
+CASES["train-p1"] = [
+    "train", "--spec", "specs/pendulum/p1_swing_up.mitl", "--runs", "3", "--trials", "150",
+    "--seed", "0", "--out", "{out}",
+]
+CASES["train-p2-unit-permanent"] = [
+    "train", "--spec", "specs/pendulum/unit_weights/p2_avoid.mitl", "--violations", "permanent",
+    "--runs", "2", "--trials", "100", "--seed", "1", "--out", "{out}",
+]
+CASES["train-hyrl-overshoot"] = [
+    "train", "--plant", "mass-damper", "--spec", "specs/mass_damper/overshoot.mitl",
+    "--runs", "2", "--trials", "30", "--seed", "0", "--out", "{out}",
+]
+
+# Fields of metrics.json that measure the machine, not the result.
+VOLATILE = {"wall_s"}
+
+
+def run_case(args: list[str]) -> dict[str, object]:
+    """Run one case in-process from the repository root; what it produced."""
+    from mitlc.cli import main
+
+    import os
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out"
+        argv = [a.replace("{out}", str(out)) for a in args]
+        cwd = os.getcwd()
+        os.chdir(ROOT)
+        try:
+            res = CliRunner().invoke(main, argv, catch_exceptions=False)
+        finally:
+            os.chdir(cwd)
+        if res.exit_code != 0:
+            raise RuntimeError(f"mitlc {' '.join(argv)} exited {res.exit_code}: {res.output}")
+        if "{out}" not in args:
+            return {"stdout": res.stdout}
+        metrics = json.loads((out / "metrics.json").read_text())
+        for k in VOLATILE:
+            metrics.pop(k, None)
+        with np.load(out / "params.npz") as z:
+            params = {k: z[k] for k in z.files}
+        return {"metrics": metrics, "params": params}
+
+
+def write(name: str, got: dict[str, object]) -> None:
+    if "stdout" in got:
+        (GOLDEN / f"{name}.out").write_text(str(got["stdout"]))
+        return
+    (GOLDEN / f"{name}.metrics.json").write_text(json.dumps(got["metrics"], indent=1, sort_keys=True) + "\n")
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **got["params"])  # type: ignore[arg-type]
+    (GOLDEN / f"{name}.params.npz").write_bytes(buf.getvalue())
+
+
+def main() -> None:
+    GOLDEN.mkdir(parents=True, exist_ok=True)
+    names = sys.argv[1:] or list(CASES)
+    for name in names:
+        write(name, run_case(CASES[name]))
+        print(name)
+
+
+if __name__ == "__main__":
+    main()
