@@ -15,9 +15,9 @@ import statistics
 
 import numpy as np
 
-from mitlc import ast as A
-from mitlc.compile import compile_spec
-from mitlc.parse import parse_spec
+from mitlc.spec import ast as A
+from mitlc.petri.compile import compile_spec
+from mitlc.spec.parse import parse_spec
 
 from _timing import timed  # bench/ is on sys.path when a bench runs
 

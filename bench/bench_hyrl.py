@@ -4,7 +4,7 @@ One run-step is one sample of one run (plant step, automaton step and reward,
 features, actor and critic update).  Measures, in one process and on one core
 (BLAS threads pinned to 1), on a mass-damper spec:
 
-* the batched learner (:meth:`mitlc.hyrl.HybridLearner.train`) at R runs at once;
+* the batched learner (:meth:`mitlc.learn.hyrl.HybridLearner.train`) at R runs at once;
 * the baseline: the same R runs trained one after the other (R = 1 each), which
   is what a per-run loop costs; the learner draws every run's numbers from that
   run's own generator, so both give the same returns (checked);
@@ -35,8 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _timing import timed  # noqa: E402
 
-from mitlc.hyrl import HybridLearner, HyrlSettings  # noqa: E402
-from mitlc.parse import load_spec  # noqa: E402
+from mitlc.learn.hyrl import HybridLearner, HyrlSettings  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
 
 
 def main() -> None:

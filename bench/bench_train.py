@@ -4,7 +4,7 @@ One run-step is one environment step of one run (plant step, net step, reward,
 actor and critic update).  Measures, in one process and on one core
 (BLAS threads pinned to 1):
 
-* the batched trainer (:meth:`mitlc.sacpn.Sacpn.train`) at R = 1 and R = 30;
+* the batched trainer (:meth:`mitlc.learn.sacpn.Sacpn.train`) at R = 1 and R = 30;
 * a naive baseline: the same algorithm written plainly, a Python loop over runs
   and steps using the library's reference pieces (``Plant.step``,
   ``NetRuntime.step`` and ``.reward`` on markings, the RBF formula per state);
@@ -37,9 +37,9 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.compile import CompileOptions, compile_spec  # noqa: E402
-from mitlc.parse import load_spec  # noqa: E402
-from mitlc.sacpn import Sacpn, SacpnSettings  # noqa: E402
+from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
+from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 
 SPECS = {
     "p1": "p1_swing_up.mitl",

@@ -7,7 +7,7 @@ The tables of docs/hyrl.md ("Why whole sides crept ...") were made with it, e.g.
     python docs/hyrl_variant.py rise_time --trials 2000 --seed 1 --set q_warp=0.5
 
 (about 35 s per overshoot line and 190 s per rise-time line with 20 runs, one core).
-``--set name=value`` overrides a :class:`mitlc.hyrl.HyrlSettings` field (read by the
+``--set name=value`` overrides a :class:`mitlc.learn.hyrl.HyrlSettings` field (read by the
 field's type, as ``mitlc train --set``).  Printed: ``success`` (runs whose greedy policy succeeds from
 every initial state with ``|q0| >= 0.1``, of 50 evenly spaced), ``states`` (successful
 (run, state) pairs among those), ``states_all`` (all 50), ``overshoot`` and
@@ -33,9 +33,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitlc.errors import MitlError  # noqa: E402
-from mitlc.hyrl import HybridLearner, HyrlSettings, evaluate  # noqa: E402
-from mitlc.parse import load_spec  # noqa: E402
-from mitlc.settings import parse_assignments  # noqa: E402
+from mitlc.learn.hyrl import HybridLearner, HyrlSettings, evaluate  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
+from mitlc.learn.settings import parse_assignments  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

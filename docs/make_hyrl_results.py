@@ -7,7 +7,7 @@ For each spec under ``specs/mass_damper/`` it trains ``runs`` independent runs
 for the thesis's number of trials (800 for the overshoot, section 3-3-1; 2000
 for the rise time, section 3-3-2), then rolls every run's greedy policy out
 from 50 initial positions evenly spaced over the spec's initial range and
-judges each rollout with the classical-criteria checker (``mitlc.criteria``).
+judges each rollout with the classical-criteria checker (``mitlc.hybrid.criteria``).
 The combined spec (section 3-3-3) is run with the policies learned separately
 (composition, the thesis's method) and, for comparison, trained directly.
 The settling-time and steady-state-error specs (beyond the thesis) get the
@@ -31,9 +31,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.automaton import compile_requirements, render_bytes  # noqa: E402
+from mitlc.hybrid.automaton import compile_requirements, render_bytes  # noqa: E402
 from mitlc.fileio import atomic_write  # noqa: E402
-from mitlc.hyrl import (  # noqa: E402
+from mitlc.learn.hyrl import (  # noqa: E402
     HANDOVER_SIGMA,
     HybridLearner,
     HyrlSettings,
@@ -42,9 +42,9 @@ from mitlc.hyrl import (  # noqa: E402
     evaluate,
     train_handover,
 )
-from mitlc.hyrl_cmd import SMALL_STEP, rollout_mode_figure  # noqa: E402
-from mitlc.parse import load_spec  # noqa: E402
-from mitlc.plots import learning_curve, png_bytes  # noqa: E402
+from mitlc.cli.hybrid import SMALL_STEP, rollout_mode_figure  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
+from mitlc.learn.plots import learning_curve, png_bytes  # noqa: E402
 
 SPECS = ROOT / "specs" / "mass_damper"
 DOCS = ROOT / "docs"
@@ -198,7 +198,7 @@ def main() -> None:
                        ctl_h.runs, args.trials_overshoot, ev_h, time.perf_counter() - start,
                        note="beyond the thesis (docs/hyrl.md): E_Mp, S and P of the overshoot learner trained "
                             f"on, from the states the rise-time policies hand over, exploring with {HANDOVER_SIGMA} N "
-                            "(`mitlc.hyrl.HANDOVER_SIGMA`); I and E_tr as composed"))
+                            "(`mitlc.learn.hyrl.HANDOVER_SIGMA`); I and E_tr as composed"))
     rows[-1].update(bound_rates)  # the same handovers: the same bound
     evs["composed_handover"] = ev_h
     if not args.no_direct:
@@ -363,7 +363,7 @@ def markdown(d: dict, args) -> str:
         f"anti-wind-up `{s['saturation']}` (see [hyrl.md](hyrl.md)).",
         "",
         f"Every run's greedy policy is rolled out from {d['initial_states']} initial positions evenly spaced over "
-        "the spec's initial range and judged by the checker (`mitlc.criteria`: overshoot, 10-90% rise time, "
+        "the spec's initial range and judged by the checker (`mitlc.hybrid.criteria`: overshoot, 10-90% rise time, "
         "settling time, steady-state error). "
         "A rollout **succeeds** when it meets every requirement *and* stabilises: it ends within 10% of the "
         "step from the set-point (the width of the thesis's S band; without it, a controller that never moves "
@@ -408,7 +408,7 @@ def markdown(d: dict, args) -> str:
         if "brake_bound_state_rate" in r:
             extra += (f"; braking at the bound from the state handed over to E_Mp would avoid the overshoot "
                       f"from {pct(r['brake_bound_state_rate'])} of the states and from all 50 in "
-                      f"{pct(r['brake_bound_success_rate'])} of the runs (`mitlc.hyrl.brake_bound`: the most "
+                      f"{pct(r['brake_bound_success_rate'])} of the runs (`mitlc.learn.hyrl.brake_bound`: the most "
                       "any overshoot policy could do with these rise-time handovers)")
         lines.append(f"- `{Path(r['spec']).name}`, {r['method']}: {parts}{extra}.")
     lines += [

@@ -28,11 +28,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitlc.fileio import atomic_write  # noqa: E402
-from mitlc.compile import CompileOptions, compile_spec  # noqa: E402
-from mitlc.monitor import monitor  # noqa: E402
-from mitlc.parse import load_spec  # noqa: E402
-from mitlc.plots import learning_curve, png_bytes, rollout_figure  # noqa: E402
-from mitlc.sacpn import Sacpn, SacpnSettings  # noqa: E402
+from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
+from mitlc.monitor.offline import monitor  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
+from mitlc.learn.plots import learning_curve, png_bytes, rollout_figure  # noqa: E402
+from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 
 COMMAND = "python docs/make_results.py"
 RUNS = 30
@@ -155,7 +155,7 @@ def write_doc(rows, comparisons, total: float) -> None:
         "[training.md](training.md)). **Success** is the fraction of runs whose final greedy rollout (no "
         "exploration, from an initial state drawn from the spec's `init` set with the run's own evaluation "
         "generator) satisfies the spec's monitor formula (`check` if the spec has one, else `formula`) by "
-        "`mitlc.monitor`. **Final return** is the mean over runs of the last 10 trials' returns (with "
+        "`mitlc.monitor.offline`. **Final return** is the mean over runs of the last 10 trials' returns (with "
         "exploration). Wall time is the training time of the 30 runs together, batched, on one core.",
         "",
         "| problem | trials | target | success seed 0 | success seed 1 | final return (s0 / s1) | wall s (s0 / s1) | "

@@ -35,11 +35,11 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.compile import CompileOptions, compile_spec  # noqa: E402
+from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.fileio import atomic_write  # noqa: E402
-from mitlc.monitor import monitor  # noqa: E402
-from mitlc.parse import load_spec  # noqa: E402
-from mitlc.sacpn import Sacpn, SacpnSettings  # noqa: E402
+from mitlc.monitor.offline import monitor  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
+from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 
 COMMAND = "python docs/make_violation_results.py --jobs {jobs}"
 RUNS, SEEDS, ABLATION_SEEDS = 30, (0, 1, 2, 3), (0, 1)
@@ -116,7 +116,7 @@ def main() -> None:
                 if r["job"][0] == spec_file and r["job"][2] == s and r["job"][3] == mode
                 and r["job"][4] == (overrides or {})]
 
-    from mitlc.plots import learning_curve, png_bytes
+    from mitlc.learn.plots import learning_curve, png_bytes
 
     seeds_text = ", ".join(str(s) for s in SEEDS)
     lines = [BEGIN, "## Violation-aware rewards (`--violations permanent`)", "",

@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 
 import mitlc
-from mitlc.export import to_json
-from mitlc.render import render_bytes, to_digraph
+from mitlc.petri.export import to_json
+from mitlc.petri.render import render_bytes, to_digraph
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -4,7 +4,7 @@
     python examples/train_pendulum.py specs/pendulum/p2_avoid.mitl --trials 2000 --runs 8 --out runs/p2
 
 The same as ``mitlc train``, as library calls: compile the spec, train
-``runs`` independent learners at once (:class:`mitlc.sacpn.Sacpn`, thesis
+``runs`` independent learners at once (:class:`mitlc.learn.sacpn.Sacpn`, thesis
 Algorithm 1 with the settings of Table 4-4), roll each one's greedy policy out
 from its own initial state, and judge the rollouts with the monitor (the
 spec's ``check`` formula, or its formula).  A seed reproduces the whole run to
@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 import mitlc
-from mitlc.monitor import monitor
-from mitlc.sacpn import Sacpn, SacpnSettings
+from mitlc.monitor.offline import monitor
+from mitlc.learn.sacpn import Sacpn, SacpnSettings
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -1,3 +1,3 @@
-from mitlc.cli import main
+from mitlc.cli.main import main
 
 main()

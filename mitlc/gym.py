@@ -1,6 +1,6 @@
 """Use a compiled reward system with any Gymnasium environment.
 
-:class:`MitlRewardWrapper` steps the reward net (one :class:`~mitlc.runtime.NetRuntime`
+:class:`MitlRewardWrapper` steps the reward net (one :class:`~mitlc.learn.runtime.NetRuntime`
 run) alongside a Gymnasium environment:
 
 =================  =====================================================================
@@ -15,7 +15,7 @@ observation        ``{"obs": obs, "marking": M_k}`` (``Dict`` of the env's space
                    entry per counter instead of ``MultiBinary``
 ``info``           ``marking`` (``M_k``, int8, in ``net.place_names`` order), ``tau``
                    (``k * dt``), ``env_reward``, and ``verdict``: the monitor's verdict
-                   on ``x_0 .. x_k`` (when :mod:`mitlc.monitor` is available)
+                   on ``x_0 .. x_k`` (when :mod:`mitlc.monitor.offline` is available)
 ``reset``          the net goes back to its initial marking: timing tokens at ``M0``,
                    state tokens on the region of ``x_0``
 =================  =====================================================================
@@ -30,7 +30,7 @@ spec plant's ``dt``.
 Gymnasium is an optional dependency: ``pip install 'mitlc[gym]'``.
 
 >>> import gymnasium as gym
->>> from mitlc.parse import parse_spec
+>>> from mitlc.spec.parse import parse_spec
 >>> spec = parse_spec('''
 ... plant pendulum
 ... prop kappa = abs(q) < 0.3
@@ -63,13 +63,13 @@ except ImportError as exc:  # pragma: no cover - exercised in a subprocess by te
         "mitlc.gym needs Gymnasium, an optional dependency: pip install 'mitlc[gym]'"
     ) from exc
 
-from mitlc import predicates as P
-from mitlc.compile import RewardSystem, compile_spec
+from mitlc.spec import predicates as P
+from mitlc.petri.compile import RewardSystem, compile_spec
 from mitlc.errors import InputError
-from mitlc.parse import load_spec
-from mitlc.plants import wrap_angle
-from mitlc.runtime import NetRuntime
-from mitlc.spec import Spec
+from mitlc.spec.parse import load_spec
+from mitlc.plants.base import wrap_angle
+from mitlc.learn.runtime import NetRuntime
+from mitlc.spec.model import Spec
 
 __all__ = ["MitlRewardWrapper", "pendulum_v1_state", "Observe", "MARKING_OBS", "VERDICT"]
 
@@ -142,7 +142,7 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     env:
         Any Gymnasium environment.
     spec:
-        A compiled :class:`~mitlc.compile.RewardSystem`, a :class:`~mitlc.spec.Spec`
+        A compiled :class:`~mitlc.petri.compile.RewardSystem`, a :class:`~mitlc.spec.model.Spec`
         or the path of a ``.mitl`` file.
     observe:
         ``obs -> {variable: value}``, or ``{variable: index or (obs -> value)}``
@@ -234,7 +234,7 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._monitor = None
         if verdict != "off":
             try:
-                self._monitor = importlib.import_module("mitlc.monitor").monitor
+                self._monitor = importlib.import_module("mitlc.monitor.offline").monitor
             except ImportError:  # the monitor is optional here: no verdict without it
                 self._monitor = None
         self._verdict_mode = verdict
@@ -394,8 +394,8 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 def _token_bounds(rs: RewardSystem) -> np.ndarray:
     """Most tokens each place can hold: 1, or inf for a counting place (``violations = counted``).
 
-    >>> from mitlc.parse import parse_spec
-    >>> from mitlc.compile import CompileOptions
+    >>> from mitlc.spec.parse import parse_spec
+    >>> from mitlc.petri.compile import CompileOptions
     >>> spec = parse_spec("plant pendulum\\nhorizon 3\\nprop a = q < 1\\nformula G a")
     >>> _token_bounds(compile_spec(spec, CompileOptions(violations="counted")))
     array([ 1.,  1.,  1.,  1., inf])

@@ -1,7 +1,7 @@
 """Hypothesis strategies for mitlc formulas, for any test module to reuse.
 
 ``formulas()`` draws syntax trees built from every node type of
-:mod:`mitlc.ast`; its printed text always parses back to an equal tree.
+:mod:`mitlc.spec.ast`; its printed text always parses back to an equal tree.
 
     from strategies import formulas            # tests/ is on sys.path under pytest
     @given(formulas(atoms=("a", "b")))
@@ -15,7 +15,7 @@ from typing import Sequence
 
 from hypothesis import strategies as st
 
-from mitlc import ast as A
+from mitlc.spec import ast as A
 
 __all__ = ["ATOMS", "bounds", "intervals", "grid_intervals", "weights", "formulas", "state_formulas"]
 
@@ -89,7 +89,7 @@ def formulas(
     weighted: bool = True,
     constants: bool = True,
 ) -> st.SearchStrategy[A.Formula]:
-    """MITL formulas over ``atoms`` using every node type of :mod:`mitlc.ast`."""
+    """MITL formulas over ``atoms`` using every node type of :mod:`mitlc.spec.ast`."""
     iv = intervals() if interval is None else interval
     leaf_choices = [st.sampled_from(tuple(atoms)).map(A.Atom)]
     if constants:

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from mitlc.automaton import (
+from mitlc.hybrid.automaton import (
     FALSE,
     TRUE,
     AllOf,
@@ -24,7 +24,7 @@ from mitlc.automaton import (
     negate,
 )
 from mitlc.errors import SpecError
-from mitlc.parse import load_spec, parse_spec
+from mitlc.spec.parse import load_spec, parse_spec
 
 HEAD = "plant mass-damper\nsetpoint 0\n"
 

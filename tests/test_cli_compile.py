@@ -10,7 +10,7 @@ import graphviz
 import pytest
 from click.testing import CliRunner
 
-from mitlc.cli import main
+from mitlc.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 P2 = str(ROOT / "specs" / "pendulum" / "p2_avoid.mitl")

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.compile import CompileOptions, compile_spec, trigger
+from mitlc.petri.compile import CompileOptions, compile_spec, trigger
 from mitlc.errors import MitlError
-from mitlc.parse import load_spec, parse_formula, parse_spec
+from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 
 ROOT = Path(__file__).resolve().parent.parent
 FIXTURES = json.loads((Path(__file__).parent / "fixtures" / "thesis_nets.json").read_text())

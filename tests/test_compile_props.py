@@ -8,9 +8,9 @@ from hypothesis import strategies as st
 
 import strategies
 
-from mitlc import ast as A
-from mitlc.compile import compile_spec
-from mitlc.parse import parse_formula, parse_spec
+from mitlc.spec import ast as A
+from mitlc.petri.compile import compile_spec
+from mitlc.spec.parse import parse_formula, parse_spec
 
 PROPS = "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
 

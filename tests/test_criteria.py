@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mitlc.criteria import DEFAULT_SETTLING_BAND, check, measure
+from mitlc.hybrid.criteria import DEFAULT_SETTLING_BAND, check, measure
 from mitlc.errors import InputError
-from mitlc.parse import parse_spec
-from mitlc.spec import Requirement
+from mitlc.spec.parse import parse_spec
+from mitlc.spec.model import Requirement
 
 
 def approx(x):

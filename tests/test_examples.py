@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 
 import mitlc
-from mitlc.export import to_dict
-from mitlc.render import to_digraph
+from mitlc.petri.export import to_dict
+from mitlc.petri.render import to_digraph
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
@@ -89,7 +89,7 @@ def test_wrap_pendulum_v1(tmp_path: Path) -> None:
     rewards = [float(line.split(" r ")[1].split()[0]) for line in steps[1:]]
     assert rewards[:6] == [2.0, 2.0, 2.0, -2.0, -1.0, -1.0]
     assert lines[-2].startswith(f"return {sum(rewards):+.2f} (Pendulum-v1's own reward would give ")
-    if importlib.util.find_spec("mitlc.monitor") is not None:
+    if importlib.util.find_spec("mitlc.monitor.offline") is not None:
         assert lines[-1].startswith("monitor: violated at 3.0 s by F G kappa, robustness ")
 
 
@@ -114,8 +114,8 @@ def test_train_pendulum(tmp_path: Path) -> None:
     """The example's numbers are the trainer's: recomputed here with the same seed."""
     import numpy as np
 
-    from mitlc.monitor import monitor
-    from mitlc.sacpn import Sacpn, SacpnSettings
+    from mitlc.monitor.offline import monitor
+    from mitlc.learn.sacpn import Sacpn, SacpnSettings
 
     out = tmp_path / "out"
     r = run_example("train_pendulum.py", "--trials", "300", "--runs", "2", "--report", "3", "--seed", "7",

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from mitlc.cli import main
-from mitlc.compile import CompileOptions, compile_spec
-from mitlc.export import to_dict, to_json, to_networkx, to_pnml
-from mitlc.parse import load_spec, parse_spec
+from mitlc.cli.main import main
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.petri.export import to_dict, to_json, to_networkx, to_pnml
+from mitlc.spec.parse import load_spec, parse_spec
 
 ROOT = Path(__file__).resolve().parent.parent
 SPECS = sorted((ROOT / "specs" / "pendulum").glob("*.mitl"))

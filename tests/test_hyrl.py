@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.automaton import compile_requirements
-from mitlc.criteria import check
+from mitlc.hybrid.automaton import compile_requirements
+from mitlc.hybrid.criteria import check
 from mitlc.errors import TrainingError
-from mitlc.hyrl import (
+from mitlc.learn.hyrl import (
     HANDOVER_SIGMA,
     HybridLearner,
     HyrlSettings,
@@ -23,7 +23,7 @@ from mitlc.hyrl import (
     load_learner,
     train_hybrid,
 )
-from mitlc.parse import load_spec, parse_spec
+from mitlc.spec.parse import load_spec, parse_spec
 
 OVERSHOOT = """plant mass-damper
 init q in [-1, 1], qdot = 0

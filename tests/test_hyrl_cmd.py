@@ -7,8 +7,8 @@ import json
 import numpy as np
 from click.testing import CliRunner
 
-from mitlc.hyrl import HyrlSettings, load_learner
-from mitlc.hyrl_cmd import automaton, train_hybrid_cli
+from mitlc.learn.hyrl import HyrlSettings, load_learner
+from mitlc.cli.hybrid import automaton, train_hybrid_cli
 
 
 def test_automaton_text_json_dot(spec_dir, tmp_path):
@@ -74,7 +74,7 @@ def test_train_hybrid_cli_resumes_to_the_same_numbers(spec_dir, tmp_path):
 
 
 def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
-    from mitlc.hyrl_cmd import compose_cmd
+    from mitlc.cli.hybrid import compose_cmd
 
     d = spec_dir / "mass_damper"
     settings = HyrlSettings(trial_s=0.9)
@@ -109,10 +109,10 @@ def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
 
 
 def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
-    from mitlc.criteria import measure
-    from mitlc.hyrl import compose
-    from mitlc.parse import load_spec
-    from mitlc.train_cmd import simulate
+    from mitlc.hybrid.criteria import measure
+    from mitlc.learn.hyrl import compose
+    from mitlc.spec.parse import load_spec
+    from mitlc.cli.train import simulate
 
     md = spec_dir / "mass_damper"
     over, rise = tmp_path / "over", tmp_path / "rise"

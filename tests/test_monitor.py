@@ -15,12 +15,12 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mitlc import ast as A
-from mitlc.cli import main
+from mitlc.spec import ast as A
+from mitlc.cli.main import main
 from mitlc.errors import CompileError, InputError, SpecError
-from mitlc.monitor import MonitorResult, monitor, offsets, signals, state_columns
-from mitlc.parse import load_spec, parse_formula, parse_spec
-from mitlc.plants import wrap_angle
+from mitlc.monitor.offline import MonitorResult, monitor, offsets, signals, state_columns
+from mitlc.spec.parse import load_spec, parse_formula, parse_spec
+from mitlc.plants.base import wrap_angle
 
 try:
     from tests.strategies import formulas, grid_intervals, state_formulas

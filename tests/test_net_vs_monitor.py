@@ -12,11 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import strategies
-from mitlc import ast as A
-from mitlc.compile import CompileOptions, compile_spec
-from mitlc.monitor import monitor
-from mitlc.parse import parse_spec
-from mitlc.runtime import NetRuntime
+from mitlc.spec import ast as A
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.monitor.offline import monitor
+from mitlc.spec.parse import parse_spec
+from mitlc.learn.runtime import NetRuntime
 
 DT, N = 0.5, 12
 SPEC = (f"plant pendulum(dt = {DT})\nhorizon {N * DT}\n"

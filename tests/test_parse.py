@@ -8,9 +8,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mitlc import ast as A
+from mitlc.spec import ast as A
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
-from mitlc.parse import MAX_DEPTH, load_spec, parse_formula, parse_predicate, parse_spec
+from mitlc.spec.parse import MAX_DEPTH, load_spec, parse_formula, parse_predicate, parse_spec
 
 a, b, c, d = (A.Atom(n) for n in "abcd")
 

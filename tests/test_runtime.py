@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from mitlc.compile import CompileOptions, compile_spec
-from mitlc.parse import parse_spec
-from mitlc.plants import PLANTS, wrap_angle
-from mitlc.runtime import NetRuntime
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.spec.parse import parse_spec
+from mitlc.plants.base import PLANTS, wrap_angle
+from mitlc.learn.runtime import NetRuntime
 
 P1 = """
 plant pendulum(u_max = 3)
@@ -289,8 +289,8 @@ def test_pendulum_input_saturates_and_velocity_is_bounded():
 
 
 def test_compiled_predicates_agree_with_the_reference():
-    from mitlc import predicates as Pr
-    from mitlc.runtime import compile_predicate
+    from mitlc.spec import predicates as Pr
+    from mitlc.learn.runtime import compile_predicate
 
     spec = parse_spec(
         "plant pendulum\nprop a = -pi < q < -pi + 0.5 or pi - 0.5 < q < pi\n"

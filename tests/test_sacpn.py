@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from mitlc.compile import compile_spec
+from mitlc.petri.compile import compile_spec
 from mitlc.errors import TrainingError
-from mitlc.parse import parse_spec
-from mitlc.plants import PLANTS
-from mitlc.sacpn import RbfFeatures, Sacpn, SacpnSettings, make_integrator
+from mitlc.spec.parse import parse_spec
+from mitlc.plants.base import PLANTS
+from mitlc.learn.sacpn import RbfFeatures, Sacpn, SacpnSettings
+from mitlc.plants import make_integrator
 
 P1 = """
 plant pendulum(u_max = 3)

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.compile import CompileOptions, compile_spec
-from mitlc.monitor import monitor
-from mitlc.parse import load_spec
-from mitlc.sacpn import Sacpn, SacpnSettings
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.monitor.offline import monitor
+from mitlc.spec.parse import load_spec
+from mitlc.learn.sacpn import Sacpn, SacpnSettings
 
 SPECS = Path(__file__).resolve().parent.parent / "specs" / "pendulum"
 

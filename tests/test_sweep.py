@@ -17,13 +17,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from mitlc.cli import main
-from mitlc.compile import CompileOptions, compile_spec
+from mitlc.cli.main import main
+from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.errors import InputError
-from mitlc.monitor import monitor
-from mitlc.parse import load_spec, parse_formula, parse_spec
-from mitlc.sacpn import Sacpn, SacpnSettings
-from mitlc.sweep import (
+from mitlc.monitor.offline import monitor
+from mitlc.spec.parse import load_spec, parse_formula, parse_spec
+from mitlc.learn.sacpn import Sacpn, SacpnSettings
+from mitlc.sweep.engine import (
     LocalBackend,
     RayBackend,
     ResultStore,
@@ -299,7 +299,7 @@ class _InstantBackend:
 
 def test_rewrites_are_coalesced_when_results_come_faster_than_the_files_are_written(short_spec, tmp_path,
                                                                                       monkeypatch):
-    import mitlc.sweep as sweep_mod
+    import mitlc.sweep.engine as sweep_mod
 
     plan = plan_sweep(load_spec(short_spec), ["weight.psi=" + ",".join(str(w) for w in range(1, 201))], [0], 2, 3)
     writes = []

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from mitlc.cli import main
+from mitlc.cli.main import main
 
 def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
@@ -45,7 +45,7 @@ def test_same_seed_same_returns_and_resume(short_spec, tmp_path):
 
 
 def test_ctrl_c_writes_a_checkpoint_that_resumes(short_spec, tmp_path, monkeypatch):
-    from mitlc import sacpn
+    from mitlc.learn import sacpn
 
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     common = ("--spec", short_spec, "--runs", 2, "-q", "--no-plots")
@@ -105,7 +105,7 @@ def test_user_errors_are_one_line_and_exit_2(short_spec, tmp_path, args, message
 
 
 def test_diverging_training_is_a_clean_error(short_spec, tmp_path, monkeypatch):
-    from mitlc import sacpn
+    from mitlc.learn import sacpn
 
     def nan_trial(self):
         self.xi[0, 0, 0] = np.inf

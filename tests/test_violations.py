@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.compile import CompileOptions, compile_spec
+from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.errors import CompileError
-from mitlc.parse import load_spec, parse_spec
+from mitlc.spec.parse import load_spec, parse_spec
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -113,9 +113,9 @@ def test_spec_option() -> None:
 
 
 # ----------------------------------------------------------------- the ordering guarantee
-from mitlc.monitor import monitor  # noqa: E402
-from mitlc.parse import parse_formula  # noqa: E402
-from mitlc.runtime import NetRuntime  # noqa: E402
+from mitlc.monitor.offline import monitor  # noqa: E402
+from mitlc.spec.parse import parse_formula  # noqa: E402
+from mitlc.learn.runtime import NetRuntime  # noqa: E402
 
 DT, STEPS = 0.03, 100
 

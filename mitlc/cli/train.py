@@ -1,0 +1,340 @@
+"""``mitlc train`` and ``mitlc simulate``: thin click commands over :mod:`mitlc.learn.sacpn`.
+
+``mitlc train --plant pendulum`` trains the plant's default spec (problem 2
+of the thesis) with 30 runs and writes, to ``--out`` (default ``runs/<spec>``):
+
+* ``metrics.json``: ``returns`` (runs x trials), ``success_rate`` (fraction of
+  runs whose final greedy rollout satisfies the spec, by :mod:`mitlc.monitor.offline`),
+  ``satisfied`` and ``robustness`` per run, ``wall_s``, the settings;
+* ``params.npz``: the learner's full state (parameters, random generator
+  states, trial counter), also the checkpoint ``--resume`` continues from;
+* ``learning_curve.png`` and ``rollout.png``.
+
+Every file is written atomically.  Ctrl-C stops after rolling back to the last
+complete trial and writes the checkpoint; ``--resume DIR`` then continues to
+``--trials`` (a total) and gives the same parameters, to the bit, as a run that
+was never interrupted.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from mitlc.cli.common import atomic_write, handle_errors
+from mitlc.errors import InputError, TrainingError
+
+__all__ = ["train", "simulate", "find_default_spec", "SPECS_DIRS"]
+
+PARAMS = "params.npz"
+SPECS_DIRS = (
+    Path(__file__).resolve().parents[2] / "specs",  # a source checkout
+    Path(__file__).resolve().parents[1] / "specs",  # the copy shipped inside the wheel (mitlc.specs)
+)
+"""Where a plant's ``default_spec`` (a path such as ``pendulum/p2_avoid.mitl``) is looked up."""
+
+
+def find_default_spec(plant_name: str) -> Path:
+    """The default spec of a plant, from the first of :data:`SPECS_DIRS` that has it."""
+    from mitlc.plants.base import PLANTS
+
+    plant = PLANTS.get(plant_name)
+    if plant is None:
+        raise InputError(f"unknown plant '{plant_name}' (known: {', '.join(sorted(PLANTS))})", file="--plant")
+    if not plant.default_spec:
+        raise InputError(f"plant '{plant_name}' has no default spec: pass --spec", file="--plant")
+    for d in SPECS_DIRS:
+        p = d / plant.default_spec
+        if p.is_file():
+            return p
+    raise InputError(f"default spec '{plant.default_spec}' not found in {', '.join(str(d) for d in SPECS_DIRS)}",
+                     file="--spec", hint="pass --spec FILE")
+
+
+def _load(spec_path: str | None, source: str | None = None, origin: str | None = None):
+    from mitlc.spec.parse import load_spec, parse_spec
+
+    if spec_path is not None:
+        return load_spec(spec_path)
+    return parse_spec(source or "", origin)
+
+
+def _settings_from_options(base, **opts):
+    import dataclasses
+
+    values = {k: v for k, v in opts.items() if v is not None}
+    return dataclasses.replace(base, **values)
+
+
+def _checked(settings, assignments, options):
+    """``settings`` after their own range checks; a failure names the option that set the
+    value (``--sigma``, ... from ``options``, else ``--set``)."""
+    from mitlc.errors import TrainingError
+
+    try:
+        settings.check()
+    except TrainingError as exc:
+        name = exc.message.split(" ", 1)[0].strip("'")
+        given = {k for k, v in options.items() if v is not None}
+        where = f"--{name.replace('_', '-')}" if name in given else "--set" if assignments else "mitlc train"
+        raise InputError(exc.message, file=where) from None
+    return settings
+
+
+def _region_track(agent, codes: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Index of the marked place of the first state sub-net per sample, and the place names."""
+    rt = agent.runtime
+    net = rt.net
+    s = next((i for i, sub in enumerate(net.subnets) if sub.kind == "state"), 0)
+    places = rt.subnet_places[s]
+    marked = rt.tables.marked[codes][..., s]
+    local = np.searchsorted(places, marked)
+    return local, [net.places[p].name for p in places]
+
+
+def _rollout_png(agent, ro, verdicts, title: str) -> bytes:
+    from mitlc.learn.plots import png_bytes, rollout_figure
+
+    show = min(5, ro.states.shape[0])
+    regions, names = _region_track(agent, ro.codes[:show])
+    fig = rollout_figure(ro.states[:show], ro.actions[:show], regions, names, ro.dt, agent.plant.state_names,
+                         agent.u_max, title, None if verdicts is None else list(verdicts[:show]))
+    return png_bytes(fig)
+
+
+def _judge(spec, ro):
+    from mitlc.monitor.offline import monitor
+
+    return monitor(spec, ro.states, ro.dt, spec.monitor_formula)
+
+
+def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plots: bool = True) -> dict:
+    from mitlc.learn.plots import learning_curve, png_bytes
+
+    agent.save(out / PARAMS)
+    metrics: dict = {
+        "spec": spec.path,
+        "formula": str(spec.formula),
+        "check": str(spec.monitor_formula),
+        "conjunction": agent.rs.options.conjunction,
+        "violations": agent.rs.options.violations,
+        "runs": agent.runs,
+        "trials": agent.trial,
+        "seed": agent.seed,
+        "settings": agent.settings.to_dict(),
+        "sigma": agent.sigma,
+        "wall_s": round(wall_s, 3),
+        "run_steps": int(agent.runs * agent.trial * agent.n_steps),
+        "interrupted": interrupted,
+        "returns": agent.returns.round(6).tolist(),
+    }
+    if not interrupted and agent.trial > 0:
+        ro = agent.rollout(agent.evaluation_states())
+        res = _judge(spec, ro)
+        metrics.update(
+            success_rate=float(np.mean(res.satisfied)),
+            satisfied=[bool(v) for v in res.satisfied],
+            robustness=[float(v) for v in res.robustness],
+            greedy_returns=ro.returns.round(6).tolist(),
+        )
+        if plots:
+            atomic_write(out / "rollout.png", _rollout_png(agent, ro, res.satisfied,
+                                                           f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"))
+    if plots and agent.trial > 0:
+        fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} runs")
+        atomic_write(out / "learning_curve.png", png_bytes(fig))
+    atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
+    return metrics
+
+
+@click.command("train")
+@click.option("--plant", "plant_name", default=None, help="Plant to train (must match the spec's plant).")
+@click.option("--spec", "spec_path", type=click.Path(dir_okay=False), default=None,
+              help="Spec file (.mitl); default: the plant's default spec.")
+@click.option("--runs", type=click.IntRange(1, 10000), default=30, show_default=True, help="Independent runs.")
+@click.option("--trials", type=click.IntRange(0, 10**7), default=500, show_default=True,
+              help="Trials per run (in total, counting trials done before --resume).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of all random numbers.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Output directory (default runs/<spec name>, or the --resume directory).")
+@click.option("--resume", "resume_dir", type=click.Path(file_okay=False, exists=True), default=None,
+              help="Continue the training saved in this directory.")
+@click.option("--conjunction", type=click.Choice(["literal", "active"]), default=None,
+              help="How '&' combines gated terms (overrides the spec's option).")
+@click.option("--violations", type=click.Choice(["off", "permanent", "counted"]), default=None,
+              help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).")
+@click.option("--penalty-ramp", type=click.FloatRange(0, 1), default=None,
+              help="With --violations: the fraction of the trials over which the penalty c grows from 0 "
+                   "(default 0.75; 0 = full from the start).")
+@click.option("--sigma", type=float, default=None,
+              help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL).")
+@click.option("--mask", type=click.Choice(["current", "next"]), default=None,
+              help="Update masking: current = M_k (gradient, default), next = M_k+1 (Algorithm 1 as printed).")
+@click.option("--saturation", type=click.Choice(["applied", "none"]), default=None,
+              help="Actor anti-wind-up: applied (default) or none (the thesis's update).")
+@click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
+              help="Any trainer setting (repeat), e.g. --set alpha_a=0.08 --set rbf=10x10x5: SacpnSettings "
+                   "for a formula spec, HyrlSettings for a 'require' spec (docs/training.md, docs/hyrl.md).")
+@click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@handle_errors
+def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjunction, violations, penalty_ramp,
+          sigma, mask, saturation, assignments, no_plots, quiet) -> None:
+    """Train SACPN controllers on a spec and judge them with the monitor."""
+    from tqdm import tqdm
+
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
+    from mitlc.learn.settings import parse_assignments
+
+    meta = None
+    if resume_dir is not None:
+        ckpt = Path(resume_dir) / PARAMS
+        if not ckpt.is_file():
+            raise InputError(f"no checkpoint {PARAMS} in {resume_dir}", file=str(resume_dir))
+        meta = read_meta(ckpt)
+        spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
+        runs, seed = int(meta["runs"]), int(meta["seed"])
+        conjunction = conjunction or meta.get("conjunction")
+        violations = violations or meta.get("violations")
+        base = SacpnSettings.from_dict(meta["settings"])
+        out = Path(out_dir or resume_dir)
+    else:
+        if spec_path is None:
+            if plant_name is None:
+                raise InputError("give --plant or --spec", file="mitlc train")
+            spec_path = str(find_default_spec(plant_name))
+        spec = _load(spec_path)
+        base = SacpnSettings()
+        out = Path(out_dir or Path("runs") / Path(spec_path).stem)
+    if plant_name is not None and spec.plant_name != plant_name:
+        raise InputError(f"the spec is for plant '{spec.plant_name}', not '{plant_name}'", file=spec.path)
+    for w in spec.warnings:
+        click.echo(w, err=True)
+    if spec.formula is None and spec.requirements:  # classical criteria: HyRL (docs/hyrl.md)
+        from mitlc.learn.hyrl import HyrlSettings
+        from mitlc.cli.hybrid import train_hybrid_cli
+
+        overrides = {k: v for k, v in (("sigma", sigma), ("saturation", saturation)) if v is not None}
+        overrides.update(parse_assignments(HyrlSettings, assignments))
+        hyrl_settings = _checked(HyrlSettings(**overrides), assignments, {"sigma": sigma, "saturation": saturation})
+        train_hybrid_cli(spec, runs, trials, seed, out, progress=not quiet, settings=hyrl_settings,
+                         plots=not no_plots, resume=resume_dir)
+        return
+    settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
+    settings = _checked(_settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
+                        assignments, {"sigma": sigma, "mask": mask, "saturation": saturation,
+                                      "penalty_ramp": penalty_ramp})
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
+    agent = Sacpn(rs, settings, runs=runs, seed=seed)
+    wall_before = 0.0
+    if meta is not None:
+        agent.load(Path(resume_dir) / PARAMS)
+        try:
+            wall_before = float(json.loads((Path(resume_dir) / "metrics.json").read_text())["wall_s"])
+        except (OSError, ValueError, KeyError):
+            wall_before = 0.0
+    out.mkdir(parents=True, exist_ok=True)
+
+    todo = max(0, trials - agent.trial)
+    bar = tqdm(total=trials, initial=agent.trial, disable=quiet, unit="trial", dynamic_ncols=True,
+               desc=Path(spec.path or "spec").stem)
+
+    def progress(trial: int, returns: np.ndarray) -> None:
+        recent = agent.returns[:, -10:].mean()
+        bar.set_postfix_str(f"mean return {recent:8.1f}", refresh=False)
+        bar.update(1)
+
+    start = time.perf_counter()
+    interrupted = False
+    try:
+        agent.train(todo, progress, total=trials)
+    except KeyboardInterrupt:
+        interrupted = True
+    except TrainingError:
+        bar.close()
+        raise
+    bar.close()
+    wall = wall_before + time.perf_counter() - start
+    metrics = _write_outputs(out, agent, spec, wall, interrupted, plots=not no_plots)
+    if interrupted:
+        click.echo(f"interrupted after trial {agent.trial}; checkpoint in {out / PARAMS}\n"
+                   f"continue with: mitlc train --resume {out} --trials {trials}", err=True)
+        sys.exit(130)
+    rate = metrics.get("success_rate")
+    click.echo(f"{agent.runs} runs x {agent.trial} trials in {wall:.1f} s; "
+               f"final mean return {agent.returns[:, -10:].mean():.1f}; "
+               f"success rate {rate:.2f} (monitor: {spec.monitor_formula}); results in {out}"
+               if rate is not None else f"no trials run; results in {out}")
+
+
+@click.command("simulate")
+@click.option("--policy", "policy_dirs", type=click.Path(file_okay=False, exists=True), required=True,
+              multiple=True,
+              help="Directory written by 'mitlc train'; repeat to run HyRL policies learned separately "
+                   "composed on --spec's combined automaton.")
+@click.option("--spec", "spec_path", type=click.Path(dir_okay=False), default=None,
+              help="Spec to judge by and start from (default: the training spec).")
+@click.option("--rollouts", type=click.IntRange(1, 100000), default=None,
+              help="Number of rollouts (default: one per trained run); rollout i uses run i mod runs.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the initial states.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
+              help="Write the figure here (default DIR/simulate.png).")
+@handle_errors
+def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
+    """Roll out a trained greedy policy from the spec's initial set and judge each rollout.
+
+    HyRL policies (classical criteria) are judged by the checker; several of them run
+    composed on --spec's combined automaton (thesis section 3-3-3)."""
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
+
+    policy_dir = policy_dirs[0]
+    ckpt = Path(policy_dir) / PARAMS
+    if not ckpt.is_file():
+        raise InputError(f"no {PARAMS} in {policy_dir} (train first with 'mitlc train --out DIR')",
+                         file=str(policy_dir))
+    meta = read_meta(ckpt)
+    if meta.get("kind") == "hyrl":
+        from mitlc.cli.hybrid import simulate_hybrid
+
+        simulate_hybrid(policy_dirs, spec_path, rollouts, seed, plot_path)
+        return
+    if len(policy_dirs) > 1:
+        raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy",
+                         file="--policy")
+    spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=meta.get("conjunction"),
+                                                     violations=meta.get("violations")))
+    agent = Sacpn(rs, SacpnSettings.from_dict(meta["settings"]), runs=int(meta["runs"]), seed=int(meta["seed"]))
+    agent.load(ckpt)
+    n = rollouts or agent.runs
+    rng = np.random.default_rng(seed)
+    x0 = np.empty((n, len(agent.init_ranges)))
+    for i, (lo, hi) in enumerate(agent.init_ranges):
+        x0[:, i] = rng.uniform(lo, hi, n)
+    ro = agent.rollout(x0)
+    res = _judge(spec, ro)
+    names = agent.plant.state_names
+    net = agent.rs.net
+    # the net's own record of violations (violations = permanent | counted): final tokens
+    watched = [i for i, p in enumerate(net.places)
+               if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))]
+    final = agent.runtime.trace_markings(ro.codes)[:, -1] if watched else None
+    for i in range(n):
+        start = ", ".join(f"{v}={x0[i, j]:.3f}" for j, v in enumerate(names))
+        verdict = "satisfied" if res.satisfied[i] else f"VIOLATED at t={res.violation_time[i]:.2f} s ({res.failing[i]})"
+        record = ""
+        if final is not None:
+            marked = [f"{net.places[j].name}={int(final[i, j])}" for j in watched if final[i, j]]
+            record = f"; net records {', '.join(marked) if marked else 'no violation'}"
+        click.echo(f"rollout {i:3d} (run {i % agent.runs:3d}, {start}): {verdict}; "
+                   f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}")
+    click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
+    atomic_write(plot_path or Path(policy_dir) / "simulate.png",
+                 _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"))

@@ -1,0 +1,397 @@
+"""Run a batch of reward nets in lock-step with a batch of plants.
+
+A :class:`NetRuntime` holds one compiled :class:`~mitlc.petri.compile.RewardSystem`
+and steps ``R`` independent copies of its net at once.  Markings are integer
+arrays of shape ``(R, P)`` (runs x places); states are ``(R, n)`` in the
+plant's ``state_names`` order.
+
+Firing rule (one step, ``M_k -> M_k+1``)
+----------------------------------------
+Given the marking ``M_k``, the next state ``x_k+1`` and the clock
+``tau_k+1``:
+
+1. every proposition is evaluated on ``x_k+1`` (:meth:`NetRuntime.truth`);
+2. every guard is evaluated on those truth values and on ``tau_k+1``
+   (:meth:`mitlc.petri.net.Guard.evaluate`);
+3. in every sub-net *at most one* transition fires: the first one, in net
+   order (``t1, t2, ...``), whose input place is marked in ``M_k`` and whose
+   guard holds.  A sub-net whose enabled transitions all have false guards
+   keeps its token where it is.  Tokens never move twice in one step, so a
+   chain of transitions whose guards hold at once takes one step per arc;
+4. ``M_k+1 = T D + M_k`` with ``T`` the 0/1 row vector of fired transitions.
+
+Time-triggered transitions (the timeline of an interval, the deadline of a
+bounded until) are ordinary transitions whose guard is a clock condition; they
+fire on the first step whose ``tau_k+1`` satisfies it.
+
+The reward of the step is ``r_k+1 = r(M_k, M_k+1)`` (:meth:`NetRuntime.reward`).
+
+Fast path
+---------
+Each sub-net holds one token, so a marking is one of finitely many
+*codes* (mixed radix over the sub-nets' local place indices), the guards see
+the propositions only through a finite *atom code* (one bit per proposition)
+and the clock only through which of the guards' clock intervals contain
+``tau``.  When those sets are small, the runtime tabulates the rule above once
+(``next_code[clock, code, atom]`` and ``reward[code, code']``), and a step is
+two table look-ups.  The tables are built *from* the direct rule, and
+:meth:`NetRuntime.step` gives the same markings either way (tested).
+
+>>> from mitlc.spec.parse import parse_spec
+>>> from mitlc.petri.compile import compile_spec
+>>> rs = compile_spec(parse_spec('''
+... plant pendulum(u_max = 3)
+... prop kappa = abs(q) < 0.3
+... formula F G kappa'''))
+>>> rt = NetRuntime(rs)
+>>> x0 = np.array([[np.pi, 0.0], [0.1, 0.0]])
+>>> M0 = rt.reset(x0); M0.tolist()              # places: p_kappa, p_not_kappa
+[[0, 1], [1, 0]]
+>>> M1 = rt.step(M0, np.array([[0.2, 0.0], [0.5, 0.0]]), 0.03); M1.tolist()
+[[1, 0], [0, 1]]
+>>> rt.reward(M0, M1).tolist()                   # (1 + ~p_kappa)(p_kappa - p_not_kappa)
+[1.0, -2.0]
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from mitlc.spec import ast as A
+from mitlc.spec import predicates as P
+from mitlc.petri.compile import RewardSystem
+from mitlc.petri.net import eval_state
+
+__all__ = ["NetRuntime"]
+
+MAX_TABLE = 1 << 22
+"""Largest transition or reward table (entries) the fast path builds."""
+
+
+def _clock_ok(interval: A.Interval, tau: np.ndarray | float) -> np.ndarray | bool:
+    lo = tau >= interval.lo if interval.lo_closed else tau > interval.lo
+    hi = tau <= interval.hi if interval.hi_closed else tau < interval.hi
+    return lo & hi
+
+
+def compile_predicate(p: P.Pred, columns: Mapping[str, int]) -> Callable[[np.ndarray], np.ndarray | float]:
+    """A predicate as one closure over a state batch ``x`` ``(R, n)`` (columns by variable name)."""
+    return P.compile_numpy(p, lambda name: (lambda x, i=columns[name]: x[:, i]))
+
+
+class NetRuntime:
+    """Step ``R`` copies of a reward net together with ``R`` plant states.
+
+    ``state_names`` maps the columns of a state array to variables; by default
+    the spec's plant's ``state_names``.
+    """
+
+    def __init__(self, rs: RewardSystem, state_names: Sequence[str] | None = None) -> None:
+        self.rs = rs
+        self.net = net = rs.net
+        if state_names is None:
+            plant = rs.spec.plant
+            if plant is None:
+                raise ValueError("the spec names no plant: pass state_names")
+            state_names = plant.state_names
+        self.state_names = tuple(state_names)
+        self.atoms: tuple[str, ...] = rs.atoms
+        self._preds = tuple(rs.spec.prop(a).pred for a in self.atoms)
+        self._columns = {name: i for i, name in enumerate(self.state_names)}
+        for pred in self._preds:
+            for v in P.variables(pred):
+                if v.name not in self._columns:
+                    raise ValueError(f"state variable '{v.name}' is not among {self.state_names}")
+        self._fast_preds = tuple(compile_predicate(p, self._columns) for p in self._preds)
+
+        self.n_places = len(net.places)
+        self.n_subnets = len(net.subnets)
+        self.subnet_places = tuple(np.array(s.places, dtype=np.intp) for s in net.subnets)
+        self._src = np.array([net.place_index(t.inputs[0]) for t in net.transitions], dtype=np.intp)
+        self._dst = np.array([net.place_index(t.outputs[0]) for t in net.transitions], dtype=np.intp)
+        self._t_subnet = np.array([t.subnet for t in net.transitions], dtype=np.intp)
+        self._D = np.asarray(net.D)
+
+        # distinct clock intervals of all guards, for the clock code
+        clocks: list[A.Interval] = []
+        for t in net.transitions:
+            for term in t.guard.terms:
+                if term.clock is not None and term.clock not in clocks:
+                    clocks.append(term.clock)
+        self.clocks: tuple[A.Interval, ...] = tuple(clocks)
+
+        # mixed-radix marking codes: code = sum_s local_index_s * stride_s
+        sizes = [len(p) for p in self.subnet_places]
+        strides = np.ones(len(sizes), dtype=np.int64)
+        for s in range(len(sizes) - 2, -1, -1):
+            strides[s] = strides[s + 1] * sizes[s + 1]
+        self._sizes = sizes
+        self._strides = strides
+        self.n_codes = int(np.prod(sizes)) if sizes else 1
+        self._place_weight = np.zeros(self.n_places, dtype=np.int64)
+        self._place_subnet = np.zeros(self.n_places, dtype=np.intp)
+        for s, places in enumerate(self.subnet_places):
+            for local, p in enumerate(places):
+                self._place_weight[p] = local * strides[s]
+                self._place_subnet[p] = s
+        self._atom_bits = (np.int64(1) << np.arange(len(self.atoms), dtype=np.int64)) if self.atoms else np.zeros(0, np.int64)
+
+        # state sub-nets: the region of each place (the state guard into it)
+        self._region_of: dict[int, A.Formula] = {}
+        for sub in net.subnets:
+            if sub.kind != "state":
+                continue
+            for t in sub.transitions:
+                tr = net.transitions[t]
+                p = net.place_index(tr.outputs[0])
+                terms = [term.state for term in tr.guard.terms if term.state is not None and term.clock is None]
+                if p not in self._region_of and terms:
+                    self._region_of[p] = terms[0]
+
+        # counting places (violations = counted) are outside the one-token codes:
+        # their increments are tabulated per (code, next code) pair
+        self.counters = np.array(net.counters, dtype=np.intp)
+        self.tables = self._build_tables()
+
+    # ------------------------------------------------------------ truth
+    def truth(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        """Proposition truth on states ``x`` ``(R, n)``: ``{atom: (R,) bool}``."""
+        x = np.asarray(x, dtype=float)
+        env = {name: x[:, i] for name, i in self._columns.items()}
+        out = {}
+        for atom, pred in zip(self.atoms, self._preds):
+            out[atom] = np.broadcast_to(np.asarray(P.evaluate(pred, env), dtype=bool), x.shape[:1])
+        return out
+
+    def atom_code(self, x: np.ndarray) -> np.ndarray:
+        """The propositions' truth on ``x`` packed into one integer per run (bit i = atom i)."""
+        preds = self._fast_preds
+        if not preds:
+            return np.zeros(np.shape(x)[0], dtype=np.int64)
+        code = np.asarray(preds[0](x), dtype=bool)
+        if len(preds) <= 7:  # bools viewed as 0/1 bytes: no conversion pass
+            code = code.view(np.int8)
+            for i, pred in enumerate(preds[1:], 1):
+                code = code + (np.asarray(pred(x), dtype=bool).view(np.int8) << i)
+            return code
+        code = code.astype(np.int64)
+        for i, pred in enumerate(preds[1:], 1):
+            code += np.asarray(pred(x), dtype=np.int64) << i
+        return code
+
+    def clock_code(self, tau: np.ndarray | float) -> np.ndarray | int:
+        """Which of the guards' clock intervals contain ``tau``, packed into an integer."""
+        if np.ndim(tau) == 0:
+            tau = float(tau)
+            return sum(1 << i for i, c in enumerate(self.clocks) if _clock_ok(c, tau))
+        tau = np.asarray(tau, dtype=float)
+        code = np.zeros(tau.shape, dtype=np.int64)
+        for i, c in enumerate(self.clocks):
+            code += _clock_ok(c, tau).astype(np.int64) << i
+        return code
+
+    # ------------------------------------------------------------ markings and codes
+    def _check_marking(self, M: np.ndarray) -> np.ndarray:
+        M = np.asarray(M)
+        if M.ndim != 2 or M.shape[1] != self.n_places:
+            raise ValueError(f"marking must be (R, {self.n_places}), got {M.shape}")
+        for s, places in enumerate(self.subnet_places):
+            if not np.all(M[:, places].sum(axis=1) == 1):
+                raise ValueError(f"sub-net {self.net.subnets[s].name!r} must hold exactly one token")
+        return M
+
+    def encode(self, M: np.ndarray) -> np.ndarray:
+        """Marking ``(R, P)`` (one token per sub-net) to codes ``(R,)``."""
+        return np.asarray(M, dtype=np.int64) @ self._place_weight
+
+    def decode(self, code: np.ndarray) -> np.ndarray:
+        """Codes ``(R,)`` to markings ``(R, P)``."""
+        code = np.asarray(code, dtype=np.int64)
+        M = np.zeros((code.shape[0], self.n_places), dtype=np.int64)
+        rows = np.arange(code.shape[0])
+        for s, places in enumerate(self.subnet_places):
+            local = (code // self._strides[s]) % self._sizes[s]
+            M[rows, places[local]] = 1
+        return M
+
+    def marked_places(self, code: np.ndarray) -> np.ndarray:
+        """Codes ``(R,)`` to the marked place of every sub-net, ``(R, S)`` place indices."""
+        return self.tables.marked[np.asarray(code)] if self.tables is not None else np.stack(
+            [self.subnet_places[s][(np.asarray(code) // self._strides[s]) % self._sizes[s]] for s in range(self.n_subnets)],
+            axis=1,
+        )
+
+    # ------------------------------------------------------------ the rule itself
+    def _guards(self, truth: Mapping[str, np.ndarray], clock_truth: Sequence[np.ndarray | bool], n: int) -> np.ndarray:
+        """Guard values ``(T, n)`` given atom truth and the truth of each clock interval."""
+        out = np.zeros((len(self.net.transitions), n), dtype=bool)
+        for t, tr in enumerate(self.net.transitions):
+            for term in tr.guard.terms:
+                ok = np.ones(n, dtype=bool)
+                if term.state is not None:
+                    ok = ok & eval_state(term.state, truth)
+                if term.clock is not None:
+                    ok = ok & clock_truth[self.clocks.index(term.clock)]
+                out[t] |= ok
+        return out
+
+    def _fire(self, M: np.ndarray, guards: np.ndarray) -> np.ndarray:
+        """The documented rule: per sub-net the first enabled transition with a true guard."""
+        n = M.shape[0]
+        taken = np.zeros((n, self.n_subnets), dtype=bool)
+        T = np.zeros((n, len(self.net.transitions)), dtype=np.int64)
+        for t in range(len(self.net.transitions)):
+            s = self._t_subnet[t]
+            fire = (M[:, self._src[t]] > 0) & guards[t] & ~taken[:, s]
+            T[:, t] = fire
+            taken[:, s] |= fire
+        return T @ self._D + M
+
+    def step_direct(self, M: np.ndarray, x_next: np.ndarray, tau_next: np.ndarray | float) -> np.ndarray:
+        """:meth:`step` computed transition by transition (no tables); the reference."""
+        M = self._check_marking(M)
+        n = M.shape[0]
+        truth = self.truth(x_next)
+        tau = np.broadcast_to(np.asarray(tau_next, dtype=float), (n,))
+        clock_truth = [_clock_ok(c, tau) for c in self.clocks]
+        return self._fire(M, self._guards(truth, clock_truth, n))
+
+    # ------------------------------------------------------------ public API
+    def reset(self, x0: np.ndarray) -> np.ndarray:
+        """Initial markings ``(R, P)``: timing places from ``net.M0``, state tokens on x0's region."""
+        x0 = np.asarray(x0, dtype=float)
+        n = x0.shape[0]
+        M = np.tile(np.asarray(self.net.M0, dtype=np.int64), (n, 1))
+        truth = self.truth(x0)
+        for sub, places in zip(self.net.subnets, self.subnet_places):
+            if sub.kind != "state":
+                continue
+            placed = np.zeros(n, dtype=bool)
+            new = np.zeros((n, len(places)), dtype=np.int64)
+            for j, p in enumerate(places):
+                region = self._region_of.get(int(p))
+                if region is None:
+                    continue
+                here = eval_state(region, truth) & ~placed
+                new[:, j] = here
+                placed |= here
+            new[~placed] = M[~placed][:, places]  # no region holds: keep M0 (cannot happen for region nets)
+            M[:, places] = new
+        return M
+
+    def step(self, M: np.ndarray, x_next: np.ndarray, tau_next: np.ndarray | float) -> np.ndarray:
+        """``M_k+1`` from ``M_k`` ``(R, P)``, ``x_k+1`` ``(R, n)`` and ``tau_k+1`` (scalar or ``(R,)``)."""
+        if self.tables is None:
+            return self.step_direct(M, x_next, tau_next)
+        M = self._check_marking(M)
+        code = self.encode(M)
+        code_next = self.step_code(code, np.asarray(x_next, dtype=float), tau_next)
+        M_next = self.decode(code_next)
+        if self.counters.size:
+            M_next[:, self.counters] = M[:, self.counters] + self.tables.counter_inc[code, code_next]
+        return M_next
+
+    def reward(self, M_prev: np.ndarray, M_next: np.ndarray) -> np.ndarray:
+        """``r(M_k, M_k+1)`` for every run, ``(R,)`` floats."""
+        return np.asarray(self.rs.reward.evaluate(np.asarray(M_prev), np.asarray(M_next)), dtype=float)
+
+    # ------------------------------------------------------------ fast path on codes
+    def reset_code(self, x0: np.ndarray) -> np.ndarray:
+        """:meth:`reset` as marking codes ``(R,)``."""
+        return self.encode(self.reset(x0))
+
+    def step_code(self, code: np.ndarray, x_next: np.ndarray, tau_next: np.ndarray | float) -> np.ndarray:
+        """:meth:`step` on marking codes (needs the tables)."""
+        tables = self.tables
+        if tables is None:
+            return self.encode(self.step_direct(self.decode(code), x_next, tau_next))
+        return tables.next_code[self.clock_code(tau_next), code, self.atom_code(x_next)]
+
+    def trace_markings(self, codes: np.ndarray) -> np.ndarray:
+        """Full markings ``(R, N+1, P)`` of code sequences ``(R, N+1)``, counters included.
+
+        Codes leave out the counting places; their tokens are the running sum of
+        the increments of each step.
+        """
+        codes = np.asarray(codes, dtype=np.int64)
+        R, K = codes.shape
+        M = self.decode(codes.reshape(-1)).reshape(R, K, self.n_places)
+        if self.counters.size and K > 1:
+            if self.tables is None:  # pragma: no cover - counted nets small enough to tabulate
+                raise ValueError("counter tokens need the tables; use step() markings instead")
+            inc = self.tables.counter_inc[codes[:, :-1], codes[:, 1:]]  # (R, K-1, C)
+            M[:, 1:, self.counters] = np.cumsum(inc, axis=1)
+        return M
+
+    def reward_code(self, code_prev: np.ndarray, code_next: np.ndarray) -> np.ndarray:
+        """:meth:`reward` on marking codes."""
+        if self.tables is None:
+            return self.reward(self.decode(code_prev), self.decode(code_next))
+        return self.tables.reward[code_prev, code_next]
+
+    def _build_tables(self) -> "_Tables | None":
+        n_atoms, n_clocks, n_codes = len(self.atoms), len(self.clocks), self.n_codes
+        n_atom_codes, n_clock_codes = 1 << n_atoms, 1 << n_clocks
+        if n_clock_codes * n_codes * n_atom_codes > MAX_TABLE or n_codes * n_codes > MAX_TABLE:
+            return None
+        codes = np.arange(n_codes, dtype=np.int64)
+        markings = self.decode(codes)
+        # every (code, atom code) pair in one batch
+        pair_code = np.repeat(codes, n_atom_codes)
+        pair_atom = np.tile(np.arange(n_atom_codes, dtype=np.int64), n_codes)
+        M = markings[pair_code]
+        truth = {a: ((pair_atom >> i) & 1).astype(bool) for i, a in enumerate(self.atoms)}
+        next_code = np.empty((n_clock_codes, n_codes, n_atom_codes), dtype=np.int64)
+        for ck in range(n_clock_codes):
+            clock_truth = [bool((ck >> i) & 1) for i in range(n_clocks)]
+            nxt = self._fire(M, self._guards(truth, clock_truth, M.shape[0]))
+            next_code[ck] = self.encode(nxt).reshape(n_codes, n_atom_codes)
+        marked = np.stack(
+            [self.subnet_places[s][(codes // self._strides[s]) % self._sizes[s]] for s in range(self.n_subnets)], axis=1
+        ) if self.n_subnets else np.zeros((n_codes, 0), dtype=np.intp)
+        # a counter grows when a transition feeding it fires, i.e. when its sub-net's
+        # token moves from the transition's input to its one-token output
+        counter_inc = np.zeros((n_codes, n_codes, len(self.counters)), dtype=np.int64)
+        counter_col = {int(p): j for j, p in enumerate(self.counters)}
+        for t, tr in enumerate(self.net.transitions):
+            fed = [counter_col[self.net.place_index(o)] for o in tr.outputs if self.net.place_index(o) in counter_col]
+            if not fed:
+                continue
+            s = self._t_subnet[t]
+            dst = next(self.net.place_index(o) for o in tr.outputs if self.net.place_index(o) not in counter_col)
+            moved = (marked[:, s] == self._src[t])[:, None] & (marked[:, s] == dst)[None, :]
+            for j in fed:
+                counter_inc[:, :, j] += moved
+        prev = np.repeat(markings, n_codes, axis=0)
+        now = np.tile(markings, (n_codes, 1))
+        if self.counters.size:
+            now[:, self.counters] = counter_inc.reshape(n_codes * n_codes, -1)
+        exprs = [self.rs.reward] + ([self.rs.charge] if self.rs.charge is not None else [])
+        tabs = [np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes) for e in exprs]
+        if self.counters.size:  # the table assumes the reward sees counters only through p - ~p
+            prev[:, self.counters] += 7
+            now[:, self.counters] += 7
+            for e, tab in zip(exprs, tabs):
+                if not np.array_equal(np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes), tab):
+                    return None
+        reward = tabs[0]
+        charge = tabs[1] if len(tabs) > 1 else np.zeros_like(reward)
+        for a in (next_code, reward, charge, marked, counter_inc):
+            a.setflags(write=False)
+        return _Tables(next_code, reward, charge, marked, counter_inc)
+
+
+class _Tables:
+    """The firing rule and the reward tabulated over marking, atom and clock codes."""
+
+    __slots__ = ("next_code", "reward", "charge", "marked", "counter_inc")
+
+    def __init__(self, next_code: np.ndarray, reward: np.ndarray, charge: np.ndarray, marked: np.ndarray,
+                 counter_inc: np.ndarray) -> None:
+        self.next_code = next_code  # (clock codes, marking codes, atom codes) -> marking code
+        self.reward = reward  # (marking codes, marking codes) -> r(M_k, M_k+1)
+        self.charge = charge  # (marking codes, marking codes) -> what the penalty c multiplies (0 with off)
+        self.marked = marked  # (marking codes, sub-nets) -> marked place index
+        self.counter_inc = counter_inc  # (marking codes, marking codes, counters) -> tokens added

@@ -1,0 +1,721 @@
+"""SACPN: the standard actor-critic with a Petri net (thesis section 4-2, Algorithm 1).
+
+The learner sees the augmented state ``(x, M)``: the plant state and the
+reward net's marking.  Every place ``i`` owns one actor row ``xi_i`` and one
+critic row ``theta_i`` over normalised Gaussian RBF features ``phi(x)``, and
+the policy and value are the marking-weighted sums (4-5)..(4-8)::
+
+    pi(x, M) = M Xi phi(x) / sum(M)          V(x, M) = M Theta phi(x) / sum(M)
+
+``R`` independent runs are trained at once (a leading run axis everywhere);
+run ``i`` draws all its random numbers from its own generator, spawned from
+the seed, so its numbers do not depend on ``R`` and a seed reproduces a
+training run to the bit.
+
+Where the thesis is silent or, measured, does not learn, this module chooses
+(each choice is a field of :class:`SacpnSettings`; ``docs/training.md`` gives
+the reasons):
+
+* **Update masking** (``mask``).  Algorithm 1 as printed weights the updates
+  with ``M_k+1``, the marking *after* the step, which credits the TD error of
+  entering a place to the new place.  The default, ``mask="current"``, is the
+  true gradient of (4-7)/(4-8): the rows updated are those of ``M_k / sum(M_k)``
+  (the places whose policy acted and whose value was estimated), and the
+  critic's eligibility trace is kept per place (a ``places x features``
+  matrix).  ``mask="next"`` is the printed form: one feature trace
+  ``e <- lambda gamma e + phi(x_k)`` and updates ``e M_k+1``, ``phi M_k+1``.
+* **Actor wind-up** (``saturation``).  The thesis's actor (2-18) moves the
+  policy towards ``u + du`` whatever the input limit, so the raw output grows
+  past ``u_max`` where a saturated input helped (the finding in issue 4).  The
+  default, ``saturation="applied"``, clips the policy's output to the input
+  bound and updates with the exploration *actually applied*:
+  ``du_applied = clip(pi_sat + du) - pi_sat`` with ``pi_sat = clip(pi)``.
+  Where the policy is saturated, exploration beyond the bound is never
+  applied and never reinforced, so the output cannot run away (the
+  conditional-integration anti-wind-up of control engineering).
+  ``saturation="none"`` is the thesis's unprotected update.
+* **Features**: 10x10 normalised Gaussian RBFs on a grid over the state
+  bounds; an angle's kernel is periodic, ``exp((cos(q - c) - 1) / w^2)``,
+  which equals ``exp(-(q - c)^2 / (2 w^2))`` to second order and wraps.
+* **Exploration**: ``du ~ N(0, sigma^2)`` independent per step;
+  ``sigma = sigma_frac * u_max`` unless given.
+* **Violation penalties** (``violation_value``, ``penalty_ramp``; only with
+  ``violations = permanent | counted``).  After the first violation the
+  permanent charge is a known constant per step, so the critic is given its
+  share of the value exactly (``c v sum_{j < N-k} gamma^j``) instead of
+  learning it; and the penalty the learner is paid ramps in linearly over the
+  first 3/4 of the planned trials.  Recorded returns are those of the full
+  reward.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from mitlc.petri.compile import RewardSystem
+from mitlc.errors import InputError, TrainingError
+from mitlc.fileio import save_npz
+from mitlc.learn.settings import check_fraction, check_non_negative, json_default
+from mitlc.learn.settings import from_dict as settings_from_dict
+from mitlc.learn.settings import to_dict as settings_to_dict
+from mitlc.plants import Plant, make_integrator
+from mitlc.learn.runtime import NetRuntime
+
+__all__ = ["SacpnSettings", "Sacpn", "Rollout", "RbfFeatures"]
+
+
+@dataclass(frozen=True)
+class SacpnSettings:
+    """Settings of the SACPN learner; defaults are Table 4-4 where the thesis gives them."""
+
+    gamma: float = 0.97
+    """Discount factor (Table 4-4)."""
+
+    lam: float = 0.67
+    """Eligibility trace decay lambda (Table 4-4)."""
+
+    alpha_c: float = 0.3
+    """Critic learning rate (Table 4-4)."""
+
+    alpha_a: float = 0.1
+    """Actor learning rate (Table 4-4)."""
+
+    rbf: tuple[int, ...] = (10, 10)
+    """RBF centres per state variable (Table 4-4: 10 x 10), in the plant's state order."""
+
+    rbf_width: float = 1.0
+    """Gaussian width as a multiple of the centre spacing (thesis silent)."""
+
+    feature_bounds: tuple[tuple[str, float, float], ...] = (("qdot", -20.0, 20.0),)
+    """Feature grid range per variable, overriding the plant bounds: ``(name, lo, hi)``.
+    The pendulum's velocity bound (15 pi) is far wider than any swing; 10 centres over
+    it would leave about two across the whole useful range. Values outside are clipped
+    for the features only. Names the plant does not have are ignored."""
+
+    sigma: float | None = None
+    """Exploration standard deviation of the input; ``None``: ``sigma_frac * u_max``."""
+
+    sigma_frac: float = 0.3
+    """Exploration as a fraction of the input bound when ``sigma`` is not given."""
+
+    trial_s: float | None = None
+    """Trial duration in seconds; ``None``: the spec's ``horizon``, else 3 s (Table 4-4)."""
+
+    dt: float | None = None
+    """Sample time; ``None``: the plant's ``dt`` (0.03 s for the pendulum, Table 4-4)."""
+
+    mask: str = "current"
+    """``current``: true gradient, updates weighted by ``M_k / sum(M_k)`` with per-place
+    traces (default). ``next``: Algorithm 1 as printed, updates weighted by ``M_k+1``."""
+
+    saturation: str = "applied"
+    """``applied``: clip the policy to the input bound and update with the applied
+    exploration (anti-wind-up, default). ``none``: the thesis's update with the raw
+    exploration; the plant still saturates the input."""
+
+    violation_value: str = "known"
+    """With ``violations = permanent``: ``known`` (default) gives the critic the penalty's
+    part of the value exactly, ``c v sum_{j < N-k} gamma^j`` (from the first violation on
+    the penalty is a known constant per step to the end of the trial), and the critic
+    and actor both weigh the rows of the state and timing places only; ``learned``
+    leaves the penalty to the critic, which then also weighs the violation places' rows."""
+
+    penalty_ramp: float = 0.75
+    """With ``violations = permanent | counted``: the penalty ``c`` the learner is paid
+    grows linearly from 0 to its full value over this fraction of the planned trials
+    (a continuation schedule; 0: full from the first trial). The returns recorded are
+    always those of the full reward, the spec's."""
+
+    bootstrap_timeout: bool = True
+    """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not as a terminal state."""
+
+    def to_dict(self) -> dict:
+        return settings_to_dict(self)
+
+    @staticmethod
+    def from_dict(d: Mapping) -> "SacpnSettings":
+        return settings_from_dict(SacpnSettings, d)
+
+    def check(self) -> None:
+        if self.mask not in ("current", "next"):
+            raise TrainingError(f"unknown mask '{self.mask}' (current or next)")
+        if self.saturation not in ("applied", "none"):
+            raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
+        if self.violation_value not in ("known", "learned"):
+            raise TrainingError(f"unknown violation_value '{self.violation_value}' (known or learned)")
+        check_fraction(self, ("gamma", "lam", "penalty_ramp"))
+        check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma_frac"))
+        if any(n < 1 for n in self.rbf):
+            raise TrainingError("rbf needs at least one centre per variable")
+        if self.sigma is not None and not (math.isfinite(self.sigma) and self.sigma >= 0):
+            raise TrainingError(f"sigma must be a non-negative number, got {self.sigma}")
+        for name in ("trial_s", "dt"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise TrainingError(f"{name} must be positive, got {v}")
+
+
+# ---------------------------------------------------------------- features
+
+
+class RbfFeatures:
+    """Normalised Gaussian RBFs on a grid, evaluated for a batch of states in one pass.
+
+    A grid of normalised Gaussians factorises: ``phi_ij = g_i(x_0) h_j(x_1) /
+    (sum g sum h)``, so each variable's kernels are computed once (one small
+    matrix product and one ``exp`` for all variables), normalised per variable,
+    and multiplied out.  The ``-x^2 / 2w^2`` part of each exponent is the same
+    for every centre of that variable and cancels in the normalisation, which
+    leaves an exponent linear in ``[cos q, sin q]`` (angles) or ``x`` (others).
+
+    >>> from mitlc.plants.base import PLANTS
+    >>> f = RbfFeatures(PLANTS["pendulum"].state, (10, 10))
+    >>> phi = f(np.array([[0.0, 0.0], [np.pi, 3.0]]))
+    >>> phi.shape, np.allclose(phi.sum(axis=1), 1.0)
+    ((2, 100), True)
+    """
+
+    def __init__(self, state, counts: tuple[int, ...], width: float = 1.0,
+                 bounds: Mapping[str, tuple[float, float]] | None = None) -> None:
+        if len(counts) != len(state):
+            raise TrainingError(f"rbf has {len(counts)} entries, the plant has {len(state)} state variables")
+        bounds = dict(bounds or {})
+        self.counts = tuple(int(c) for c in counts)
+        self.n_features = int(np.prod(self.counts))
+        cols: list[tuple[int, str, float, float]] = []  # (var index, kind, mid, lo/hi)
+        blocks = []
+        z_rows = 0
+        self.centres: list[np.ndarray] = []
+        for i, (v, n) in enumerate(zip(state, self.counts)):
+            lo, hi = bounds.get(v.name, (v.lo, v.hi))
+            if v.periodic:
+                span = hi - lo
+                c = lo + span * np.arange(n) / n
+                w = width * span / n
+                blocks.append(("periodic", i, z_rows, c, w, lo, hi))
+                z_rows += 2
+            else:
+                c = np.linspace(lo, hi, n) if n > 1 else np.array([0.5 * (lo + hi)])
+                spacing = (hi - lo) / max(n - 1, 1)
+                w = width * spacing
+                blocks.append(("linear", i, z_rows, c, w, lo, hi))
+                z_rows += 1
+            self.centres.append(c)
+        z_rows += 1  # a column of ones carries the constant part of the exponents
+        total = sum(self.counts)
+        W = np.zeros((z_rows, total))
+        offsets = np.cumsum((0,) + self.counts)
+        for b, (kind, i, row, c, w, lo, hi) in enumerate(blocks):
+            sl = slice(offsets[b], offsets[b + 1])
+            if kind == "periodic":
+                k = 1.0 / (w * w)
+                W[row, sl] = k * np.cos(c)
+                W[row + 1, sl] = k * np.sin(c)
+            else:
+                mid = 0.5 * (lo + hi)
+                cc = c - mid
+                W[row, sl] = cc / (w * w)  # applied to x itself: the -mid shift is in the bias
+                W[-1, sl] = -cc * cc / (2 * w * w) - mid * cc / (w * w)
+        self.W = W
+        self._block_ones = np.zeros((total, total))
+        for b in range(len(self.counts)):
+            self._block_ones[offsets[b]:offsets[b + 1], offsets[b]:offsets[b + 1]] = 1.0
+        self.blocks = blocks
+        self.offsets = offsets
+        self.z_rows = z_rows
+        self._buffers: dict[int, tuple] = {}
+
+    def _buf(self, R: int):
+        b = self._buffers.get(R)
+        if b is None:
+            Z = np.empty((R, self.z_rows))
+            Z[:, -1] = 1.0
+            b = (Z, np.empty((R, sum(self.counts))), np.empty((R, sum(self.counts))))
+            self._buffers[R] = b
+        return b
+
+    def __call__(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Features ``(R, F)`` of states ``(R, n)`` (F = product of the counts)."""
+        R = x.shape[0]
+        Z, E, S = self._buf(R)
+        for kind, i, row, c, w, lo, hi in self.blocks:
+            if kind == "periodic":
+                np.cos(x[:, i], out=Z[:, row])
+                np.sin(x[:, i], out=Z[:, row + 1])
+            else:
+                np.minimum(x[:, i], hi, out=Z[:, row])
+                np.maximum(Z[:, row], lo, out=Z[:, row])
+        np.matmul(Z, self.W, out=E)
+        np.exp(E, out=E)
+        o = self.offsets
+        if len(self.counts) == 2:
+            np.matmul(E, self._block_ones, out=S)  # each kernel's block sum
+            np.divide(E, S, out=E)
+            if out is None:
+                out = np.empty((R, self.n_features))
+            np.multiply(E[:, o[0]:o[1], None], E[:, None, o[1]:o[2]],
+                        out=out.reshape(R, self.counts[0], self.counts[1]))
+            return out
+        phi = np.ones((R, 1))
+        for b in range(len(self.counts)):
+            blk = E[:, o[b]:o[b + 1]]
+            blk = blk / blk.sum(axis=1, keepdims=True)
+            phi = (phi[:, :, None] * blk[:, None, :]).reshape(R, -1)
+        if out is not None:
+            out[...] = phi
+            return out
+        return phi
+
+
+# ---------------------------------------------------------------- the learner
+
+
+@dataclass
+class Rollout:
+    """One batch of trajectories: ``states (R, N+1, n)``, ``actions (R, N)``,
+    marking ``codes (R, N+1)`` and ``rewards (R, N)``; ``dt`` the sample time."""
+
+    states: np.ndarray
+    actions: np.ndarray
+    codes: np.ndarray
+    rewards: np.ndarray
+    dt: float
+
+    @property
+    def returns(self) -> np.ndarray:
+        return self.rewards.sum(axis=1)
+
+
+@dataclass
+class _Snapshot:
+    xi: np.ndarray
+    theta: np.ndarray
+    rng_states: list
+    trial: int
+
+
+class Sacpn:
+    """SACPN for ``runs`` independent runs on one compiled spec.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> from mitlc.petri.compile import compile_spec
+    >>> rs = compile_spec(parse_spec('''
+    ... plant pendulum(u_max = 3)
+    ... init q = pi, qdot = 0
+    ... prop kappa = abs(q) < 0.3
+    ... formula F G kappa'''))
+    >>> agent = Sacpn(rs, runs=2, seed=1)
+    >>> agent.train(3).shape                       # returns: runs x trials
+    (2, 3)
+    """
+
+    def __init__(self, rs: RewardSystem, settings: SacpnSettings | None = None, runs: int = 1, seed: int = 0) -> None:
+        settings = settings or SacpnSettings()
+        settings.check()
+        if runs < 1:
+            raise TrainingError(f"runs must be at least 1, got {runs}")
+        spec = rs.spec
+        plant = spec.plant
+        if plant is None:
+            raise TrainingError("the spec names no plant (add 'plant NAME' to train on it)")
+        self.rs, self.spec, self.plant, self.settings = rs, spec, plant, settings
+        self.runs, self.seed = int(runs), int(seed)
+        self.params = plant.params({k: v for k, v in spec.plant_params})
+        if settings.dt is not None:
+            self.params["dt"] = float(settings.dt)
+        self.dt = float(self.params["dt"])
+        self.u_max = float(self.params["u_max"])
+        self.sigma = float(settings.sigma) if settings.sigma is not None else settings.sigma_frac * self.u_max
+        horizon = settings.trial_s if settings.trial_s is not None else (spec.horizon or 3.0)
+        self.trial_s = float(horizon)
+        self.n_steps = max(1, int(round(self.trial_s / self.dt)))
+        self.runtime = NetRuntime(rs, plant.state_names)
+        if self.runtime.tables is None:
+            raise TrainingError("the reward net is too large to tabulate for training")
+        self.n_places = self.runtime.n_places
+        # The actor weighs the rows of the state and timing places only: a violation
+        # sub-net is no reason to act differently in the same state. The critic weighs
+        # the violation places' rows too, unless it is given the penalty's value
+        # (violation_value = known with permanent), which is all they would carry.
+        acting = [s for s, sub in enumerate(rs.net.subnets) if sub.kind != "violation"]
+        tables = self.runtime.tables
+        self._marked = np.ascontiguousarray(tables.marked[:, acting])
+        # the penalty's known part of the value (violation_value = known, permanent only):
+        # V_pen = -pen[code] G[k], pen[code] = c when the marking records a violation (a
+        # permanent charge depends only on the marking entered: any row of the table
+        # gives it), G[k] = sum_{j < N-k} gamma^j
+        self._known = rs.options.violations == "permanent" and settings.violation_value == "known"
+        if self._known:
+            self._pen = rs.penalty * tables.charge.max(axis=0)
+            self._pen_left = np.array([sum(settings.gamma ** j for j in range(self.n_steps - k))
+                                       for k in range(self.n_steps + 1)])
+        self._marked_c = self._marked if self._known else tables.marked
+        self.n_tokens = len(acting)
+        self.n_tokens_c = self._marked_c.shape[1]
+        bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
+        self.features = RbfFeatures(plant.state, settings.rbf, settings.rbf_width, bounds)
+        self.n_features = self.features.n_features
+        self.integrate = make_integrator(plant, self.params)
+        init = {r.var: (r.lo, r.hi) for r in spec.init}
+        self.init_ranges = [init.get(v, (0.0, 0.0)) for v in plant.state_names]
+        # clock code of every step's tau_k+1 (the same for all runs: they move in lock-step)
+        self._clock = [self.runtime.clock_code((k + 1) * self.dt) for k in range(self.n_steps)]
+
+        R, P, F = self.runs, self.n_places, self.n_features
+        self.xi = np.zeros((R, P, F))
+        self.theta = np.zeros((R, P, F))
+        self.trial = 0
+        self.ramp_trials: int | None = None  # fixed by the first train() (penalty_ramp x planned trials)
+        self.returns = np.zeros((R, 0))
+        children = np.random.SeedSequence(self.seed).spawn(R)
+        pairs = [c.spawn(2) for c in children]
+        self.rngs = [np.random.Generator(np.random.PCG64(p[0])) for p in pairs]
+        self.eval_rngs = [np.random.Generator(np.random.PCG64(p[1])) for p in pairs]
+        self._snapshot: _Snapshot | None = None
+
+    # ------------------------------------------------------------ helpers
+    def sample_init(self, rngs: list[np.random.Generator]) -> np.ndarray:
+        """One initial state per run from the spec's ``init`` ranges (others 0)."""
+        x = np.empty((len(rngs), len(self.init_ranges)))
+        for r, g in enumerate(rngs):
+            for i, (lo, hi) in enumerate(self.init_ranges):
+                x[r, i] = g.uniform(lo, hi)
+        for i, v in enumerate(self.plant.state):
+            if v.periodic:
+                x[:, i] = (x[:, i] + np.pi) % (2 * np.pi) - np.pi
+        return x
+
+    def penalty_scale(self, trial: int) -> float:
+        """The fraction of the violation penalty ``c`` paid in (0-based) ``trial``."""
+        ramp = self.ramp_trials or 0
+        return 1.0 if trial >= ramp else trial / ramp
+
+    def _flat(self, code: np.ndarray, offset: np.ndarray, critic: bool = False) -> np.ndarray:
+        return (self._marked_c if critic else self._marked)[code] + offset
+
+    def policy(self, x: np.ndarray, code: np.ndarray, xi: np.ndarray | None = None) -> np.ndarray:
+        """Greedy input ``pi(x, M)`` clipped to the input bound, ``(R,)``."""
+        xi = self.xi if xi is None else xi
+        R = x.shape[0]
+        phi = self.features(x)
+        offset = (np.arange(R) * self.n_places)[:, None]
+        rows = xi.reshape(-1, self.n_features)[self._flat(code, offset)]
+        u = np.einsum("rkf,rf->r", rows, phi) / self.n_tokens
+        return np.clip(u, -self.u_max, self.u_max)
+
+    def value(self, x: np.ndarray, code: np.ndarray) -> np.ndarray:
+        """Critic ``V(x, M)``, ``(R,)``."""
+        R = x.shape[0]
+        phi = self.features(x)
+        offset = (np.arange(R) * self.n_places)[:, None]
+        rows = self.theta.reshape(-1, self.n_features)[self._flat(code, offset, critic=True)]
+        return np.einsum("rkf,rf->r", rows, phi) / self.n_tokens_c
+
+    # ------------------------------------------------------------ training
+    def train(self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None,
+              total: int | None = None) -> np.ndarray:
+        """Run ``trials`` more trials on every run; returns their returns ``(R, trials)``.
+
+        ``total``: the trials this learner is meant to run in all, counting those
+        already done (default: done + ``trials``); the first call fixes the penalty
+        ramp (``penalty_ramp``) from it, so a learner trained in chunks passes it.
+        ``callback(trial, returns)`` is called after each trial.  On
+        KeyboardInterrupt the learner is rolled back to the end of the last
+        complete trial (so :meth:`save` then writes a consistent checkpoint)
+        and the interrupt is re-raised.
+        """
+        if self.ramp_trials is None:
+            planned = self.trial + trials if total is None else max(int(total), self.trial)
+            self.ramp_trials = int(round(self.settings.penalty_ramp * planned)) if self.rs.charge is not None else 0
+        out = np.zeros((self.runs, trials))
+        done = 0
+        try:
+            for t in range(trials):
+                self._snapshot = _Snapshot(self.xi.copy(), self.theta.copy(),
+                                           [g.bit_generator.state for g in self.rngs], self.trial)
+                out[:, t] = self._trial()
+                self._check_finite()
+                self.trial += 1
+                done = t + 1
+                self.returns = np.concatenate([self.returns, out[:, t:t + 1]], axis=1)
+                if callback is not None:
+                    callback(self.trial, out[:, t])
+        except KeyboardInterrupt:
+            self._rollback()
+            raise
+        self._snapshot = None
+        return out[:, :done]
+
+    def _rollback(self) -> None:
+        s = self._snapshot
+        if s is None or s.trial != self.trial:
+            return
+        self.xi, self.theta = s.xi, s.theta
+        for g, st in zip(self.rngs, s.rng_states):
+            g.bit_generator.state = st
+        self._snapshot = None
+
+    def _check_finite(self) -> None:
+        for name, arr in (("actor", self.xi), ("critic", self.theta)):
+            bad = ~np.isfinite(arr).reshape(self.runs, -1).all(axis=1)
+            if bad.any():
+                runs = ", ".join(str(int(i)) for i in np.flatnonzero(bad)[:10])
+                raise TrainingError(
+                    f"the {name} parameters diverged (NaN or inf) in trial {self.trial + 1}, run(s) {runs}",
+                    hint="lower the learning rates (alpha_a, alpha_c) or the exploration sigma",
+                )
+
+    def _trial(self) -> np.ndarray:
+        """One trial of Algorithm 1 on all runs at once; returns the undiscounted returns.
+
+        The hot loop: every array is preallocated, the net is two table
+        look-ups, and each update touches only the rows of the marked places
+        except the critic's trace update, which is one pass over ``Theta``.
+        """
+        st = self.settings
+        R, P, F, K, KC = self.runs, self.n_places, self.n_features, self.n_tokens, self.n_tokens_c
+        N = self.n_steps
+        rt = self.runtime
+        tables = rt.tables
+        next_code, reward_full, marked, marked_c = tables.next_code, tables.reward, self._marked, self._marked_c
+        # the penalty ramp: this trial pays s c instead of c (returns are counted with c)
+        s_pen = self.penalty_scale(self.trial)
+        reward_tab = reward_full if s_pen >= 1.0 else reward_full + ((1.0 - s_pen) * self.rs.penalty) * tables.charge
+        atom_code, features, integrate, clock = rt.atom_code, self.features, self.integrate, self._clock
+        gamma, gl = st.gamma, st.gamma * st.lam
+        a_c, a_a = st.alpha_c, st.alpha_a
+        u_max = self.u_max
+        current = st.mask == "current"
+        applied = st.saturation == "applied"
+        inv_k, inv_kc = 1.0 / K, 1.0 / KC
+        minimum, maximum, add, subtract, multiply, matmul = (
+            np.minimum, np.maximum, np.add, np.subtract, np.multiply, np.matmul)
+
+        xt = np.empty((len(self.plant.state), R))  # rows are contiguous: cheap column access
+        x = xt.T
+        x[...] = self.sample_init(self.rngs)
+        noise = np.empty((N, R))
+        for r, g in enumerate(self.rngs):
+            noise[:, r] = g.standard_normal(N)
+        noise *= self.sigma
+
+        theta = self.theta
+        xi_f = self.xi.reshape(R * P, F)
+        th_f = theta.reshape(R * P, F)
+        offset = (np.arange(R) * P)[:, None]
+        # critic trace, stored scaled: E = scale * E_hat (lazy decay by gamma * lambda)
+        e_hat = np.zeros((R, P, F) if current else (R, F))
+        e_hat_f = e_hat.reshape(R * P, F) if current else e_hat
+        tmp = np.empty_like(e_hat)
+        scale = 1.0
+
+        code = rt.reset_code(x)
+        # marked rows as flat indices into (R * P, F); with one token per run a 1-D index
+        # (the actor's rows: flat; the critic's, which add the violation places: flat_c)
+        one, one_c = K == 1, KC == 1
+        mk = marked[:, 0] if one else marked
+        mk_c = marked_c[:, 0] if one_c else marked_c
+        off = offset[:, 0] if one else offset
+        off_c = offset[:, 0] if one_c else offset
+        flat = mk[code] + off
+        same = KC == K  # no violation sub-nets: the critic's rows are the actor's
+        flat_c = flat if same else mk_c[code] + off_c
+        phi = features(x)
+        phi_next = np.empty_like(phi)
+        ret = np.zeros(R)
+        u, a, du, coef, v0, v1, u_sat, delta, sv, over = (np.empty(R) for _ in range(10))
+        keep = np.zeros(R, dtype=bool)
+        bootstrap = st.bootstrap_timeout
+        known = self._known
+        if known:
+            pen, pen_left = self._pen * s_pen, self._pen_left
+        vecdot = np.vecdot
+        sv_b = sv[:, None] if (one_c or not current) else sv[:, None, None]
+        coef_b = coef[:, None] if one else coef[:, None, None]
+
+        def dot(rows: np.ndarray, ph: np.ndarray, out: np.ndarray, single: bool) -> None:
+            if single:
+                vecdot(rows, ph, out=out)
+            else:
+                np.add.reduce(vecdot(rows, ph[:, None, :]), axis=1, out=out)
+
+        def rows_of(ph: np.ndarray, single: bool) -> np.ndarray:  # phi shaped like the gathered rows
+            return ph if single else ph[:, None, :]
+
+        dot(xi_f[flat], phi, u, one)
+        u *= inv_k
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            for k in range(N):
+                # act: u_k = pi(x_k) + du_k, saturated
+                if applied:
+                    minimum(u, u_max, out=u_sat)
+                    maximum(u_sat, -u_max, out=u_sat)
+                    add(u_sat, noise[k], out=a)
+                    minimum(a, u_max, out=a)
+                    maximum(a, -u_max, out=a)
+                    subtract(a, u_sat, out=du)
+                else:
+                    add(u, noise[k], out=a)
+                    du[:] = noise[k]
+                # the plant and the net move
+                integrate(x, a)
+                code1 = next_code[clock[k], code, atom_code(x)]
+                r = reward_tab[code, code1]
+                ret += r if s_pen >= 1.0 else reward_full[code, code1]
+                features(x, out=phi_next)
+                flat1 = mk[code1]
+                flat1 += off
+                if same:
+                    flat1_c = flat1
+                else:
+                    flat1_c = mk_c[code1]
+                    flat1_c += off_c
+                # TD error with Theta_k
+                dot(th_f[flat_c], phi, v0, one_c)
+                multiply(v0, -inv_kc, out=delta)
+                delta += r
+                if bootstrap or k < N - 1:
+                    dot(th_f[flat1_c], phi_next, v1, one_c)
+                    v1 *= gamma * inv_kc
+                    delta += v1
+                if known:  # V_pen = -pen[code] G[k]: + pen_k G_k - gamma pen_k+1 G_k+1
+                    delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
+                # actor: xi += alpha_a delta du grad pi, grad pi = m phi(x_k)
+                multiply(delta, du, out=coef)
+                if applied:  # never move a saturated output further past the bound:
+                    subtract(u, u_sat, out=over)  # > 0 above the bound, < 0 below, else 0
+                    over *= coef
+                    np.less_equal(over, 0.0, out=keep)
+                    coef *= keep
+                # critic: per-place trace (current) or one feature trace (next)
+                scale *= gl
+                if scale < 1e-100:
+                    e_hat *= scale
+                    scale = 1.0
+                ph = rows_of(phi, one)
+                if current:
+                    coef *= a_a * inv_k
+                    xi_f[flat] += coef_b * ph
+                    e_hat_f[flat_c] += (inv_kc / scale) * rows_of(phi, one_c)
+                    multiply(delta, a_c * scale, out=sv)
+                    multiply(e_hat, sv[:, None, None], out=tmp)
+                    theta += tmp
+                else:
+                    coef *= a_a
+                    xi_f[flat1] += coef_b * ph
+                    e_hat += phi * (1.0 / scale)
+                    multiply(delta, a_c * scale, out=sv)
+                    multiply(e_hat, sv_b, out=tmp)
+                    th_f[flat1_c] += tmp if one_c else tmp[:, None, :]
+                # next policy output with Xi_k+1
+                code, flat, flat_c = code1, flat1, flat1_c
+                phi, phi_next = phi_next, phi
+                dot(xi_f[flat], phi, u, one)
+                u *= inv_k
+        return ret
+
+    # ------------------------------------------------------------ evaluation
+    def rollout(self, x0: np.ndarray, greedy: bool = True, rngs: list[np.random.Generator] | None = None) -> Rollout:
+        """Roll the policy out from ``x0`` ``(B, n)``; every row uses run ``b % R``'s parameters.
+
+        Greedy by default (no exploration, no learning); with ``greedy=False``
+        the exploration noise is drawn from ``rngs`` (one per row).
+        """
+        x = np.array(x0, dtype=float)
+        B, N = x.shape[0], self.n_steps
+        run = np.arange(B) % self.runs
+        xi = self.xi[run]
+        states = np.empty((B, N + 1, x.shape[1]))
+        actions = np.empty((B, N))
+        codes = np.empty((B, N + 1), dtype=np.int64)
+        rewards = np.empty((B, N))
+        rt = self.runtime
+        code = rt.reset_code(x)
+        states[:, 0], codes[:, 0] = x, code
+        for k in range(N):
+            u = self.policy(x, code, xi)
+            if not greedy:
+                noise = np.array([g.standard_normal() for g in rngs]) * self.sigma  # type: ignore[union-attr]
+                u = np.clip(u + noise, -self.u_max, self.u_max)
+            self.integrate(x, u)
+            code1 = rt.step_code(code, x, (k + 1) * self.dt)
+            rewards[:, k] = rt.reward_code(code, code1)
+            code = code1
+            states[:, k + 1], codes[:, k + 1], actions[:, k] = x, code, u
+        return Rollout(states, actions, codes, rewards, self.dt)
+
+    def evaluation_states(self) -> np.ndarray:
+        """One initial state per run for the final greedy rollout (each run's own evaluation stream)."""
+        return self.sample_init(self.eval_rngs)
+
+    # ------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict[str, np.ndarray]:
+        meta = {
+            "trial": self.trial,
+            "ramp_trials": self.ramp_trials,
+            "runs": self.runs,
+            "seed": self.seed,
+            "settings": self.settings.to_dict(),
+            "rng_states": [g.bit_generator.state for g in self.rngs],
+            "eval_rng_states": [g.bit_generator.state for g in self.eval_rngs],
+            "places": list(self.rs.net.place_names),
+            "state_names": list(self.plant.state_names),
+            "spec_source": self.spec.source or "",
+            "spec_path": self.spec.path or "",
+            "conjunction": self.rs.options.conjunction,
+            "violations": self.rs.options.violations,
+        }
+        return {
+            "xi": self.xi,
+            "theta": self.theta,
+            "returns": self.returns,
+            "meta": np.array(json.dumps(meta, default=json_default)),
+        }
+
+    def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
+        meta = json.loads(str(d["meta"]))
+        shape = (self.runs, self.n_places, self.n_features)
+        if meta["runs"] != self.runs or tuple(d["xi"].shape) != shape:
+            raise InputError(
+                f"checkpoint holds {meta['runs']} runs of shape {tuple(d['xi'].shape)}, expected {shape}"
+            )
+        if meta["places"] != list(self.rs.net.place_names):
+            raise InputError("checkpoint was trained on a different reward net")
+        self.xi = np.array(d["xi"], dtype=float)
+        self.theta = np.array(d["theta"], dtype=float)
+        self.returns = np.array(d["returns"], dtype=float).reshape(self.runs, -1)
+        self.trial = int(meta["trial"])
+        self.ramp_trials = meta.get("ramp_trials")
+        self.seed = int(meta["seed"])
+        for g, s in zip(self.rngs, meta["rng_states"]):
+            g.bit_generator.state = s
+        for g, s in zip(self.eval_rngs, meta["eval_rng_states"]):
+            g.bit_generator.state = s
+
+    def save(self, path: str | Path) -> None:
+        """Write the learner's state to ``path`` (.npz) atomically."""
+        save_npz(path, self.state_dict())
+
+    def load(self, path: str | Path) -> None:
+        try:
+            with np.load(path, allow_pickle=False) as d:
+                self.load_state_dict({k: d[k] for k in d.files})
+        except (OSError, KeyError, ValueError) as exc:
+            raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
+
+
+def read_meta(path: str | Path) -> dict:
+    """The metadata stored in a checkpoint (settings, runs, seed, spec text...)."""
+    try:
+        with np.load(path, allow_pickle=False) as d:
+            return json.loads(str(d["meta"]))
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
+
+

@@ -1,0 +1,22 @@
+"""Spec and trajectory to verdict: the MITL monitor.
+
+In: a :class:`mitlc.spec.Spec` (or a formula) and sampled traces, as arrays, mappings
+of columns, or files (CSV, ``.npz``: :mod:`mitlc.monitor.trace`). Out:
+:class:`MonitorResult`, the Boolean verdict and the robustness of each trace under
+the standard finite-trace MITL semantics (docs/monitor.md), and where a trace failed.
+
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
+:mod:`mitlc.spec`.
+"""
+
+from mitlc.monitor.offline import (
+    TIME_TOL,
+    MonitorResult,
+    monitor,
+    needed_variables,
+    offsets,
+    signals,
+    state_columns,
+)
+
+__all__ = ["TIME_TOL", "MonitorResult", "monitor", "needed_variables", "offsets", "signals", "state_columns"]

@@ -1,0 +1,823 @@
+"""MITL monitor: Boolean verdicts and robustness of sampled trajectories.
+
+The monitor judges finite, uniformly sampled traces ``x_0 .. x_N`` (sample
+``k`` at time ``t_k = k * dt``) by the standard, *relative* MITL semantics: the
+interval of a temporal operator evaluated at ``t_k`` is counted from ``t_k``.
+Every node type of :mod:`mitlc.spec.ast` has one case in a
+:func:`functools.singledispatch` function; an unknown node is a
+:class:`~mitlc.errors.CompileError`.
+
+Two answers per trace, computed by the same code over two lattices:
+
+* the **verdict** over booleans (``or``/``and``, false/true), and
+* the **robustness** over reals (``max``/``min``, -inf/+inf): for a comparison
+  ``a < b`` it is ``b - a`` (``a > b``: ``a - b``; ``a == b``: ``-|a - b|``;
+  ``a != b``: ``|a - b|``); a chained comparison takes the min over its links,
+  ``and`` min, ``or`` max, ``not`` negation, and the temporal operators take
+  min/max over their windows (the space robustness of STL/MITL).
+
+Where the robustness is not 0 its sign is the verdict. At exactly 0 the
+verdict is decided by the comparison itself (``q < 0.3`` is false and
+``q <= 0.3`` true at ``q == 0.3``), so a robustness of 0 goes with either
+verdict.
+
+Finite-trace choices (see ``docs/monitor.md``):
+
+* sample offset ``j`` is in interval ``I`` iff ``j * dt`` is in ``I``, ends open
+  or closed as written, with a tolerance of 1e-9 (relative to the bound);
+* windows are cut at the end of the trace;
+* ``F``, ``U`` are *strong*: they need a witness inside the trace;
+* ``G``, ``R`` are *weak*: they hold unless a counter-example is inside the trace;
+* ``a W_I b`` is ``(a U_I b) | G[0, sup I] a`` (as in :mod:`mitlc.spec.passes`).
+
+Interval operators use a van Herk/Gil-Werman sliding window and until uses a
+blocked backward scan, all vectorised over runs, so the cost grows linearly
+with the trace length, not with length x window.
+
+>>> from mitlc.spec.parse import parse_spec
+>>> spec = parse_spec('''
+... prop kappa = abs(x) < 0.5
+... formula F[0,1] G kappa
+... ''')
+>>> res = monitor(spec, {"x": np.array([1.0, 0.5, 0.25, 0.125])}, dt=0.5)
+>>> res.satisfied, res.robustness
+(array([ True]), array([0.25]))
+>>> res = monitor(spec, {"x": np.array([1.0, 1.0, 0.5, 0.125])}, dt=0.5)
+>>> res.satisfied, res.robustness, res.violation_time, res.failing
+(array([False]), array([0.]), array([1.]), ('F[0,1] G kappa',))
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import singledispatch
+from typing import Any, Mapping
+
+import numpy as np
+
+from mitlc.spec import ast as A
+from mitlc.spec import predicates as P
+from mitlc.errors import CompileError, InputError, SpecError
+from mitlc.plants.base import wrap_angle
+from mitlc.spec.model import Spec
+
+__all__ = ["MonitorResult", "monitor", "signals", "offsets", "state_columns", "needed_variables", "TIME_TOL"]
+
+TIME_TOL = 1e-9
+"""Tolerance (seconds, relative to the bound when it exceeds 1) when a sample
+time is compared with an interval end."""
+
+
+# ----------------------------------------------------------------- result
+
+
+@dataclass(frozen=True)
+class MonitorResult:
+    """What :func:`monitor` says about a batch of ``R`` traces."""
+
+    satisfied: np.ndarray
+    """``(R,)`` bool: the verdict at time 0."""
+    robustness: np.ndarray
+    """``(R,)`` float: the robustness at time 0 (``±inf`` when no predicate bounds it)."""
+    violation_time: np.ndarray
+    """``(R,)`` float: first time (s) at which the verdict became certain-false, nan where satisfied."""
+    failing: tuple[str | None, ...]
+    """Per run: text of the smallest subformula responsible for the violation, None if satisfied."""
+
+
+# ----------------------------------------------------------------- lattices
+
+
+@dataclass(frozen=True)
+class _Lattice:
+    """Booleans or reals with their join, meet, bottom and top."""
+
+    name: str
+    join: np.ufunc
+    meet: np.ufunc
+    bottom: Any
+    top: Any
+    dtype: type
+
+    def neg(self, x: np.ndarray) -> np.ndarray:
+        return ~x if self.dtype is bool else -x
+
+    def full(self, shape: tuple[int, ...], value: Any) -> np.ndarray:
+        return np.full(shape, value, dtype=self.dtype)
+
+
+BOOL = _Lattice("bool", np.logical_or, np.logical_and, False, True, bool)
+REAL = _Lattice("real", np.maximum, np.minimum, -np.inf, np.inf, float)
+
+
+# ----------------------------------------------------------------- intervals
+
+
+def offsets(interval: A.Interval, dt: float) -> tuple[int, float]:
+    """Sample offsets ``(lo, hi)`` of ``interval``: ``j`` is in it iff ``lo <= j <= hi``.
+
+    ``hi`` is ``inf`` for an unbounded interval; ``lo > hi`` means no sample
+    offset falls in the interval.
+
+    >>> offsets(A.Interval(1, 2, lo_closed=False), 0.5)
+    (3, 4)
+    >>> offsets(A.Interval(0, 1, hi_closed=False), 0.5)
+    (0, 1)
+    >>> offsets(A.Interval(0.3, 0.6), 0.1)
+    (3, 6)
+    >>> offsets(A.Interval(0.1, 0.2, False, False), 0.5)
+    (1, 0)
+    >>> offsets(A.UNBOUNDED, 0.03)
+    (0, inf)
+    """
+    lo_tol = TIME_TOL * max(1.0, abs(interval.lo))
+    if interval.lo_closed:
+        lo = math.ceil((interval.lo - lo_tol) / dt)
+    else:
+        lo = math.floor((interval.lo + lo_tol) / dt) + 1
+    lo = max(lo, 0)
+    if math.isinf(interval.hi):
+        return lo, math.inf
+    hi_tol = TIME_TOL * max(1.0, abs(interval.hi))
+    if interval.hi_closed:
+        x = (interval.hi + hi_tol) / dt
+        if not math.isfinite(x):
+            return lo, math.inf
+        hi = math.floor(x)
+    else:
+        x = (interval.hi - hi_tol) / dt
+        if not math.isfinite(x):
+            return lo, math.inf
+        hi = math.ceil(x) - 1
+    return lo, hi
+
+
+# ----------------------------------------------------------------- kernels
+
+
+def _shift(x: np.ndarray, j: int, fill: Any) -> np.ndarray:
+    """``y[:, k] = x[:, k + j]``, ``fill`` past the end."""
+    if j == 0:
+        return x
+    R, L = x.shape
+    out = np.full((R, L), fill, dtype=x.dtype)
+    if j < L:
+        out[:, : L - j] = x[:, j:]
+    return out
+
+
+def _window(x: np.ndarray, lo: int, hi: float, op: np.ufunc, ident: Any) -> np.ndarray:
+    """``y[:, k] = op(x[:, k+lo .. min(k+hi, N)])``, ``ident`` where the window is empty.
+
+    van Herk/Gil-Werman: blocks as long as the window, a prefix and a suffix
+    scan inside each block, and one ``op`` per output sample; linear in the
+    trace length whatever the window.
+
+    >>> x = np.array([[3.0, 1.0, 4.0, 1.0, 5.0, 9.0, 2.0]])
+    >>> _window(x, 1, 3, np.maximum, -np.inf)
+    array([[  4.,   5.,   9.,   9.,   9.,   2., -inf]])
+    """
+    R, L = x.shape
+    out = np.full((R, L), ident, dtype=x.dtype)
+    if lo > L - 1 or hi < lo:
+        return out
+    hi_i = int(min(hi, L - 1))
+    w = hi_i - lo + 1
+    z = x[:, lo:]
+    n = z.shape[1]
+    if w >= n:  # every window reaches the end of the trace: a suffix scan
+        out[:, :n] = op.accumulate(z[:, ::-1], axis=1)[:, ::-1]
+        return out
+    if w == 1:
+        out[:, :n] = z
+        return out
+    nb = -(-(n + w - 1) // w)
+    padded = np.full((R, nb * w), ident, dtype=x.dtype)
+    padded[:, :n] = z
+    blocks = padded.reshape(R, nb, w)
+    prefix = op.accumulate(blocks, axis=2).reshape(R, nb * w)
+    suffix = op.accumulate(blocks[:, :, ::-1], axis=2)[:, :, ::-1].reshape(R, nb * w)
+    out[:, :n] = op(suffix[:, :n], prefix[:, w - 1 : w - 1 + n])
+    return out
+
+
+_SMALL = 64
+
+
+def _until_unbounded(phi: np.ndarray, psi: np.ndarray, lat: _Lattice) -> np.ndarray:
+    """``U[k] = join_j meet(psi[k+j], meet(phi[k .. k+j-1]))``: untimed strong until.
+
+    It is the backward recurrence ``U[k] = join(psi[k], meet(phi[k], U[k+1]))``,
+    ``U[N+1] = bottom``. The trace is cut into about sqrt(L) blocks; the
+    recurrence runs inside all blocks at once, then across the block starts
+    (the same problem, solved recursively), then one fix-up pass. Linear work.
+
+    >>> phi = np.array([[True, True, False, True, True]])
+    >>> psi = np.array([[False, False, True, False, False]])
+    >>> _until_unbounded(phi, psi, BOOL)
+    array([[ True,  True,  True, False, False]])
+    """
+    R, L = phi.shape
+    if L <= _SMALL:
+        out = np.empty((R, L), dtype=lat.dtype)
+        cur = lat.full((R,), lat.bottom)
+        for k in range(L - 1, -1, -1):
+            cur = lat.join(psi[:, k], lat.meet(phi[:, k], cur))
+            out[:, k] = cur
+        return out
+    B = math.isqrt(L - 1) + 1
+    nb = -(-L // B)
+    pad = nb * B - L
+    if pad:
+        phi = np.concatenate([phi, lat.full((R, pad), lat.top)], axis=1)
+        psi = np.concatenate([psi, lat.full((R, pad), lat.bottom)], axis=1)
+    # layout (B, R, nb): offset inside the block first, so each step is contiguous
+    ph = np.ascontiguousarray(phi.reshape(R, nb, B).transpose(2, 0, 1))
+    ps = np.ascontiguousarray(psi.reshape(R, nb, B).transpose(2, 0, 1))
+    inner = np.empty_like(ps)
+    cur = lat.full((R, nb), lat.bottom)
+    for i in range(B - 1, -1, -1):
+        cur = lat.join(ps[i], lat.meet(ph[i], cur))
+        inner[i] = cur
+    phi_suffix = lat.meet.accumulate(ph[::-1], axis=0)[::-1]
+    # U at the start of each block, then at the start of the next block
+    starts = _until_unbounded(phi_suffix[0], inner[0], lat)
+    after = _shift(starts, 1, lat.bottom)
+    U = lat.join(inner, lat.meet(phi_suffix, after[None, :, :]))
+    return U.transpose(1, 2, 0).reshape(R, nb * B)[:, :L]
+
+
+def _until(phi: np.ndarray, psi: np.ndarray, lo: int, hi: float, lat: _Lattice) -> np.ndarray:
+    """Strong ``phi U_[lo,hi] psi`` in sample offsets.
+
+    ``U_[lo,hi](k) = meet(G_[0,lo-1] phi (k), (F_[0,hi-lo] psi & phi U psi)(k + lo))``;
+    the second part holds because ``phi U_[0,c] psi = F_[0,c] psi & phi U psi``
+    on discrete time (the first witness of ``psi`` inside the window is one).
+    """
+    R, L = phi.shape
+    if hi < lo or lo > L - 1:
+        return lat.full((R, L), lat.bottom)
+    core = _until_unbounded(phi, psi, lat)
+    if hi - lo < L - 1:
+        core = lat.meet(core, _window(psi, 0, hi - lo, lat.join, lat.bottom))
+    out = _shift(core, lo, lat.bottom)
+    if lo > 0:
+        out = lat.meet(out, _window(phi, 0, lo - 1, lat.meet, lat.top))
+    return out
+
+
+# ----------------------------------------------------------------- predicates
+
+
+def _compare_rob(op: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    if op in ("<", "<="):
+        return b - a
+    if op in (">", ">="):
+        return a - b
+    if op == "==":
+        return -np.abs(a - b)
+    return np.abs(a - b)
+
+
+_CMP = P.COMPARISONS
+
+
+@singledispatch
+def _pred(p: P.Pred, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Truth and robustness of a boolean predicate, both of ``shape``."""
+    if P.is_boolean(p):  # pragma: no cover - every boolean node has a case
+        raise CompileError(f"cannot monitor predicate node {type(p).__name__}")
+    raise CompileError(f"'{p}' is a number, not a condition")
+
+
+@_pred.register
+def _(p: P.Compare, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    values = [np.broadcast_to(np.asarray(P.evaluate(o, env), dtype=float), shape) for o in p.operands]
+    truth = np.ones(shape, dtype=bool)
+    rob = np.full(shape, np.inf)
+    for op, a, b in zip(p.ops, values, values[1:]):
+        if op not in _CMP:  # pragma: no cover - the grammar only has these
+            raise CompileError(f"unknown comparison '{op}'")
+        truth = truth & _CMP[op](a, b)
+        d = _compare_rob(op, a, b)
+        rob = np.minimum(rob, np.where(np.isnan(d), 0.0, d))
+    return truth, rob
+
+
+@_pred.register
+def _(p: P.PAnd, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    (ta, ra), (tb, rb) = _pred(p.left, env, shape), _pred(p.right, env, shape)
+    return ta & tb, np.minimum(ra, rb)
+
+
+@_pred.register
+def _(p: P.POr, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    (ta, ra), (tb, rb) = _pred(p.left, env, shape), _pred(p.right, env, shape)
+    return ta | tb, np.maximum(ra, rb)
+
+
+@_pred.register
+def _(p: P.PNot, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    t, r = _pred(p.arg, env, shape)
+    return ~t, -r
+
+
+# ----------------------------------------------------------------- evaluation
+
+
+class _Eval:
+    """Signals of every subformula over one batch, computed once and cached."""
+
+    def __init__(self, spec: Spec, env: dict[str, np.ndarray], dt: float, R: int, L: int) -> None:
+        self.spec, self.env, self.dt, self.R, self.L = spec, env, dt, R, L
+        self.N = L - 1
+        self._atoms: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._cache: dict[tuple[str, A.Formula], np.ndarray] = {}
+
+    def atom(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        if name not in self._atoms:
+            with np.errstate(all="ignore"):
+                self._atoms[name] = _pred(self.spec.prop(name).pred, self.env, (self.R, self.L))
+        return self._atoms[name]
+
+    def sig(self, f: A.Formula, lat: _Lattice) -> np.ndarray:
+        key = (lat.name, f)
+        out = self._cache.get(key)
+        if out is None:
+            out = _signal(f, self, lat)
+            self._cache[key] = out
+        return out
+
+    def settle(self, f: A.Formula) -> np.ndarray:
+        key = ("settle", f)
+        out = self._cache.get(key)
+        if out is None:
+            out = _settle(f, self)
+            self._cache[key] = out
+        return out
+
+    def offsets(self, interval: A.Interval) -> tuple[int, float]:
+        return offsets(interval, self.dt)
+
+
+@singledispatch
+def _signal(f: A.Formula, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    """The ``(R, N+1)`` signal of ``f`` over ``lat`` (truth or robustness)."""
+    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+
+
+@_signal.register
+def _(f: A.Const, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    return lat.full((ev.R, ev.L), lat.top if f.value else lat.bottom)
+
+
+@_signal.register
+def _(f: A.Atom, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    truth, rob = ev.atom(f.name)
+    return truth if lat is BOOL else rob
+
+
+@_signal.register
+def _(f: A.Not, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    return lat.neg(ev.sig(f.child, lat))
+
+
+@_signal.register
+def _(f: A.Weighted, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    return ev.sig(f.child, lat)
+
+
+@_signal.register
+def _(f: A.And, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    return lat.meet(ev.sig(f.left, lat), ev.sig(f.right, lat))
+
+
+@_signal.register
+def _(f: A.Or, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    return lat.join(ev.sig(f.left, lat), ev.sig(f.right, lat))
+
+
+@_signal.register
+def _(f: A.Implies, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    return lat.join(lat.neg(ev.sig(f.left, lat)), ev.sig(f.right, lat))
+
+
+@_signal.register
+def _(f: A.Iff, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    a, b = ev.sig(f.left, lat), ev.sig(f.right, lat)
+    return lat.meet(lat.join(lat.neg(a), b), lat.join(a, lat.neg(b)))
+
+
+@_signal.register
+def _(f: A.Eventually, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return _window(ev.sig(f.child, lat), lo, hi, lat.join, lat.bottom)
+
+
+@_signal.register
+def _(f: A.Globally, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return _window(ev.sig(f.child, lat), lo, hi, lat.meet, lat.top)
+
+
+@_signal.register
+def _(f: A.Until, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return _until(ev.sig(f.left, lat), ev.sig(f.right, lat), lo, hi, lat)
+
+
+@_signal.register
+def _(f: A.Release, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    a, b = lat.neg(ev.sig(f.left, lat)), lat.neg(ev.sig(f.right, lat))
+    return lat.neg(_until(a, b, lo, hi, lat))
+
+
+def _upto(interval: A.Interval) -> A.Interval:
+    """``[0, sup I]`` with ``I``'s upper end: the ``G`` part of a weak until."""
+    return A.Interval(0.0, interval.hi, True, interval.hi_closed)
+
+
+@_signal.register
+def _(f: A.WeakUntil, ev: _Eval, lat: _Lattice) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    a, b = ev.sig(f.left, lat), ev.sig(f.right, lat)
+    glo, ghi = ev.offsets(_upto(f.interval))
+    return lat.join(_until(a, b, lo, hi, lat), _window(a, glo, ghi, lat.meet, lat.top))
+
+
+# ----------------------------------------------------------------- explanations
+#
+# The settle signal of a node: S[r, k] is a sample from which the node's value
+# at sample k (true or false) can no longer change, whatever the later samples
+# of the same trace are. It is built compositionally, like the robustness (so
+# for parts that depend on each other, as in `F a & G !a`, it may be later than
+# the earliest such sample), with
+# values and windows of sample indices: a G is refuted by its earliest settled
+# counter-example, an F by the last settled sample of its window, an & by its
+# earliest refuted side, an | only when both sides are refuted, an until by
+# either its left side failing or its window passing without a witness. The
+# violation time of a run is S[r, 0] * dt.
+#
+# `_blame` descends from a false formula to the smallest subformula responsible.
+
+
+def _settled(x: np.ndarray, ev: _Eval) -> np.ndarray:
+    """An operator whose window holds no sample of the trace (it starts after
+    the end, or no sample offset lies in the interval) is settled at once: its
+    value follows from the length of the trace alone."""
+    return np.where(np.isinf(x), np.arange(ev.L, dtype=float), x)
+
+
+_INF = np.inf
+
+
+@singledispatch
+def _settle(f: A.Formula, ev: _Eval) -> np.ndarray:
+    """``(R, N+1)`` float array of sample indices: when ``f``'s value at each sample settles."""
+    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+
+
+@_settle.register
+def _(f: A.Const, ev: _Eval) -> np.ndarray:
+    return np.broadcast_to(np.arange(ev.L, dtype=float), (ev.R, ev.L))
+
+
+_settle.register(A.Atom, _settle.dispatch(A.Const))
+
+
+@_settle.register
+def _(f: A.Not, ev: _Eval) -> np.ndarray:
+    return ev.settle(f.child)
+
+
+@_settle.register
+def _(f: A.Weighted, ev: _Eval) -> np.ndarray:
+    return ev.settle(f.child)
+
+
+def _junction(value: np.ndarray, decisive: bool, sides: tuple[A.Formula, ...], ev: _Eval) -> np.ndarray:
+    """An & (decisive value False) or an | (True): settled by its earliest
+    decisive side when it has that value, else when both sides are settled."""
+    s = [ev.settle(x) for x in sides]
+    v = [ev.sig(x, BOOL) for x in sides]
+    earliest = np.minimum(*(np.where(vi == decisive, si, _INF) for vi, si in zip(v, s)))
+    return np.where(value == decisive, earliest, np.maximum(*s))
+
+
+@_settle.register
+def _(f: A.And, ev: _Eval) -> np.ndarray:
+    return _junction(ev.sig(f, BOOL), False, (f.left, f.right), ev)
+
+
+@_settle.register
+def _(f: A.Or, ev: _Eval) -> np.ndarray:
+    return _junction(ev.sig(f, BOOL), True, (f.left, f.right), ev)
+
+
+@_settle.register
+def _(f: A.Implies, ev: _Eval) -> np.ndarray:
+    return ev.settle(A.Or(A.Not(f.left), f.right))
+
+
+@_settle.register
+def _(f: A.Iff, ev: _Eval) -> np.ndarray:
+    return np.maximum(ev.settle(f.left), ev.settle(f.right))
+
+
+def _settle_window(f: A.Eventually | A.Globally, decisive: bool, ev: _Eval) -> np.ndarray:
+    """F (decisive child value True) or G (False): settled by the earliest
+    decisive sample of the window, else when every sample of it is settled."""
+    lo, hi = ev.offsets(f.interval)
+    s, v = ev.settle(f.child), ev.sig(f.child, BOOL)
+    hit = _window(np.where(v == decisive, s, _INF), lo, hi, np.minimum, _INF)
+    every = _window(s, lo, hi, np.maximum, -_INF)
+    out = np.where(ev.sig(f, BOOL) == decisive, hit, every)
+    return _settled(out, ev)
+
+
+@_settle.register
+def _(f: A.Eventually, ev: _Eval) -> np.ndarray:
+    return _settle_window(f, True, ev)
+
+
+@_settle.register
+def _(f: A.Globally, ev: _Eval) -> np.ndarray:
+    return _settle_window(f, False, ev)
+
+
+@_settle.register
+def _(f: A.Until, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    sl, sr = ev.settle(f.left), ev.settle(f.right)
+    vl, vr = ev.sig(f.left, BOOL), ev.sig(f.right, BOOL)
+    # true: the earliest witness j with right settled true at k+j and left settled true before
+    true_at = -_until(-np.where(vl, sl, _INF), -np.where(vr, sr, _INF), lo, hi, REAL)
+    # false: every j of the window is refuted, by right settled false at k+j or left before it
+    false_at = _until(np.where(vl, _INF, sl), np.where(vr, _INF, sr), lo, hi, REAL)
+    return _settled(np.where(ev.sig(f, BOOL), true_at, false_at), ev)
+
+
+@_settle.register
+def _(f: A.Release, ev: _Eval) -> np.ndarray:
+    return ev.settle(A.Until(A.Not(f.left), A.Not(f.right), f.interval))
+
+
+@_settle.register
+def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
+    return ev.settle(A.Or(A.Until(f.left, f.right, f.interval), A.Globally(f.left, _upto(f.interval))))
+
+
+def _first(row: np.ndarray, a: int, b: int, value: bool) -> int | None:
+    """First index in ``[a, b]`` where ``row`` equals ``value``, else None."""
+    b = min(b, len(row) - 1)
+    if a > b:
+        return None
+    seg = row[a : b + 1] == value
+    i = int(np.argmax(seg))
+    return a + i if seg[i] else None
+
+
+def _span(ev: _Eval, interval: A.Interval, k: int) -> tuple[int, int]:
+    """First and last sample of the window at ``k`` (first > last if it is empty)."""
+    lo, hi = ev.offsets(interval)
+    if hi < lo:
+        return k + lo, k + lo - 1
+    return k + lo, int(min(k + hi, ev.N))
+
+
+@singledispatch
+def _blame(f: A.Formula, ev: _Eval, r: int, k: int) -> A.Formula:
+    """For ``f`` false at sample ``k`` of run ``r``: the smallest subformula responsible."""
+    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+
+
+def _self(f: A.Formula, ev: _Eval, r: int, k: int) -> A.Formula:
+    return f
+
+
+# Nodes that are themselves the smallest responsible part when they fail: an
+# atom, a constant, a negation, an | (both sides failed), an <->, an F (no
+# witness in its window).
+for _node_type in (A.Const, A.Atom, A.Not, A.Or, A.Iff, A.Eventually):
+    _blame.register(_node_type, _self)
+del _node_type
+
+
+@_blame.register
+def _(f: A.Weighted, ev: _Eval, r: int, k: int) -> A.Formula:
+    return _blame(f.child, ev, r, k)
+
+
+@_blame.register
+def _(f: A.And, ev: _Eval, r: int, k: int) -> A.Formula:
+    failed = [s for s in (f.left, f.right) if not ev.sig(s, BOOL)[r, k]]
+    side = min(failed, key=lambda s: ev.settle(s)[r, k])
+    return _blame(side, ev, r, k)
+
+
+@_blame.register
+def _(f: A.Implies, ev: _Eval, r: int, k: int) -> A.Formula:
+    return _blame(f.right, ev, r, k)
+
+
+@_blame.register
+def _(f: A.Globally, ev: _Eval, r: int, k: int) -> A.Formula:
+    first, last = _span(ev, f.interval, k)
+    failed = ~ev.sig(f.child, BOOL)[r, first : last + 1]
+    when = np.where(failed, ev.settle(f.child)[r, first : last + 1], _INF)
+    return _blame(f.child, ev, r, first + int(np.argmin(when)))
+
+
+@_blame.register
+def _(f: A.Until, ev: _Eval, r: int, k: int) -> A.Formula:
+    first, last = _span(ev, f.interval, k)
+    stop = _first(ev.sig(f.left, BOOL)[r], k, ev.N, False)
+    if first <= last and stop is not None and stop < last:
+        return _blame(f.left, ev, r, stop)  # left failed before right came
+    return f  # the window passed without a witness
+
+
+@_blame.register
+def _(f: A.Release, ev: _Eval, r: int, k: int) -> A.Formula:
+    first, last = _span(ev, f.interval, k)
+    stop = _first(ev.sig(f.left, BOOL)[r], k, ev.N, True)
+    end = last if stop is None else min(last, stop)
+    witness = _first(ev.sig(f.right, BOOL)[r], first, end, False)
+    if witness is None:  # pragma: no cover - f is false, so !left U !right has a witness
+        return f
+    return _blame(f.right, ev, r, witness)
+
+
+@_blame.register
+def _(f: A.WeakUntil, ev: _Eval, r: int, k: int) -> A.Formula:
+    _, last = _span(ev, _upto(f.interval), k)
+    stop = _first(ev.sig(f.left, BOOL)[r], k, last, False)
+    if stop is None:  # pragma: no cover - f is false, so G[0,sup I] left fails
+        return f
+    return _blame(f.left, ev, r, stop)
+
+
+# ----------------------------------------------------------------- inputs
+
+
+def state_columns(spec: Spec) -> tuple[str, ...]:
+    """Column order of a states array: the plant's state variables, or without a
+    plant the sorted names of the variables the propositions use.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> state_columns(parse_spec("prop a = y < 1 and x > 0\\nformula F a"))
+    ('x', 'y')
+    """
+    plant = spec.plant
+    if plant is not None:
+        return plant.state_names
+    return tuple(sorted({v.name for p in spec.props for v in P.variables(p.pred)}))
+
+
+def needed_variables(spec: Spec, f: A.Formula) -> tuple[str, ...]:
+    """State variables the propositions of ``f`` read; a :class:`SpecError` for an undefined proposition.
+
+    >>> from mitlc.spec.parse import parse_spec, parse_formula
+    >>> spec = parse_spec("prop a = y < 1\\nprop b = x > 0\\nformula F a")
+    >>> needed_variables(spec, parse_formula("b U a"))
+    ('x', 'y')
+    """
+    names: dict[str, None] = {}
+    defined = {p.name for p in spec.props}
+    for node in A.walk(f):
+        if isinstance(node, A.Atom):
+            if node.name not in defined:
+                pos = node.pos
+                hint = f"defined: {', '.join(sorted(defined))}" if defined else "the spec defines no proposition"
+                raise SpecError(
+                    f"undefined proposition '{node.name}'",
+                    line=pos.line if pos else None,
+                    column=pos.column if pos else None,
+                    hint=hint,
+                )
+            for v in P.variables(spec.prop(node.name).pred):
+                names.setdefault(v.name)
+    return tuple(names)
+
+
+def _as_batch(a: Any, what: str) -> np.ndarray:
+    arr = np.asarray(a, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2:
+        raise InputError(f"{what} must have shape (R, N+1) or (N+1,), got {arr.shape}")
+    return arr
+
+
+def _environment(spec: Spec, states: Any, needed: tuple[str, ...]) -> tuple[dict[str, np.ndarray], int, int]:
+    env: dict[str, np.ndarray] = {}
+    if isinstance(states, Mapping):
+        missing = [n for n in needed if n not in states]
+        if missing:
+            raise InputError(
+                f"no values for state variable{'s' if len(missing) > 1 else ''} {', '.join(missing)}",
+                hint=f"given: {', '.join(map(str, states)) or 'nothing'}",
+            )
+        for n in needed:
+            env[n] = _as_batch(states[n], f"state variable '{n}'")
+        shapes = {a.shape for a in env.values()}
+        if len(shapes) > 1:
+            raise InputError(f"state variables have different shapes: {sorted(shapes)}")
+        shape = shapes.pop() if shapes else _shape_of_mapping(states)
+    else:
+        arr = np.asarray(states, dtype=float)
+        if arr.ndim == 2:
+            arr = arr[None]
+        if arr.ndim != 3:
+            raise InputError(f"states must have shape (R, N+1, n) or (N+1, n), got {arr.shape}")
+        cols = state_columns(spec)
+        if arr.shape[2] != len(cols):
+            raise InputError(
+                f"states have {arr.shape[2]} column{'s' if arr.shape[2] != 1 else ''}, "
+                f"expected {len(cols)} ({', '.join(cols) or 'none'})"
+            )
+        for n in needed:
+            env[n] = arr[:, :, cols.index(n)]
+        shape = arr.shape[:2]
+    R, L = shape
+    if L < 1:
+        raise InputError("a trace needs at least one sample")
+    for n, a in env.items():
+        if not np.isfinite(a).all():
+            r, k = np.argwhere(~np.isfinite(a))[0]
+            raise InputError(f"state variable '{n}' is not finite (run {r}, sample {k}: {a[r, k]})")
+    plant = spec.plant
+    if plant is not None:
+        for v in plant.state:
+            if v.periodic and v.name in env:
+                env[v.name] = wrap_angle(env[v.name])
+    return env, int(R), int(L)
+
+
+def _shape_of_mapping(states: Mapping[str, Any]) -> tuple[int, int]:
+    for n, a in states.items():
+        try:
+            return _as_batch(a, f"state variable '{n}'").shape  # type: ignore[return-value]
+        except (TypeError, ValueError):
+            continue
+    raise InputError("no state values given: cannot tell the trace length")
+
+
+def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> tuple[_Eval, A.Formula]:
+    f = spec.monitor_formula if formula is None else formula
+    try:
+        dt = float(dt)
+    except (TypeError, ValueError):
+        raise InputError(f"sample time must be a number, got {dt!r}") from None
+    if not (math.isfinite(dt) and dt > 0):
+        raise InputError(f"sample time must be positive and finite, got {dt}")
+    needed = needed_variables(spec, f)
+    env, R, L = _environment(spec, states, needed)
+    return _Eval(spec, env, dt, R, L), f
+
+
+# ----------------------------------------------------------------- API
+
+
+def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> MonitorResult:
+    """Judge a batch of sampled traces by ``formula`` (default ``spec.monitor_formula``).
+
+    ``states`` is an array ``(R, N+1, n)`` (or one trace ``(N+1, n)``) with
+    columns in :func:`state_columns` order, or a mapping from state variable
+    name to ``(R, N+1)`` (or ``(N+1,)``) arrays. Sample ``k`` is at ``k * dt``
+    seconds. Periodic state variables of the spec's plant are wrapped to
+    ``[-pi, pi)`` first.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> spec = parse_spec("prop up = abs(q) < 0.3\\nformula G[0,1] !up")
+    >>> res = monitor(spec, np.array([[2.0], [1.0], [0.25], [0.0]]), dt=0.5)
+    >>> res.satisfied, res.violation_time, res.failing
+    (array([False]), array([1.]), ('!up',))
+    """
+    ev, f = _prepare(spec, states, dt, formula)
+    truth = ev.sig(f, BOOL)
+    rob = ev.sig(f, REAL)
+    satisfied = truth[:, 0].copy()
+    robustness = rob[:, 0].astype(float)
+    violation = np.full(ev.R, np.nan)
+    failing: list[str | None] = []
+    if not satisfied.all():
+        violation = np.where(satisfied, np.nan, ev.settle(f)[:, 0] * ev.dt)
+    for r in range(ev.R):
+        failing.append(None if satisfied[r] else str(_blame(f, ev, r, 0)))
+    return MonitorResult(satisfied, robustness, violation, tuple(failing))
+
+
+def signals(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> dict[str, np.ndarray]:
+    """Robustness signal ``(R, N+1)`` of every subformula, keyed by its text.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> spec = parse_spec("prop a = x > 0\\nformula F[0,1] a")
+    >>> s = signals(spec, {"x": np.array([-1.0, 2.0, -3.0])}, dt=1.0)
+    >>> s["a"], s["F[0,1] a"]
+    (array([[-1.,  2., -3.]]), array([[ 2.,  2., -3.]]))
+    """
+    ev, f = _prepare(spec, states, dt, formula)
+    return {str(node): ev.sig(node, REAL) for node in A.walk(f)}

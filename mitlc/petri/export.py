@@ -1,0 +1,207 @@
+"""Exports of a compiled reward system: text, JSON, PNML and networkx.
+
+All functions are pure: they return strings or objects and write nothing.
+
+>>> from mitlc.spec.parse import parse_spec
+>>> from mitlc.petri.compile import compile_spec
+>>> rs = compile_spec(parse_spec("prop a = x < 1\\nformula G a"))
+>>> import json; d = json.loads(to_json(rs))
+>>> [p["name"] for p in d["places"]], d["D"]
+(['p_a', 'p_not_a'], [[-1, 1], [1, -1]])
+>>> g = to_networkx(rs); sorted(g.nodes)
+['p_a', 'p_not_a', 't1', 't2']
+"""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from typing import Any
+
+import networkx as nx
+
+from mitlc.petri import reward as R
+from mitlc.petri.compile import RewardSystem
+
+__all__ = ["to_dict", "to_json", "to_text", "to_pnml", "to_networkx", "reward_tree", "PNML_NS", "PTNET_TYPE"]
+
+PNML_NS = "http://www.pnml.org/version-2009/grammar/pnml"
+PTNET_TYPE = "http://www.pnml.org/version-2009/grammar/ptnet"
+
+
+def reward_tree(e: R.RExpr) -> dict[str, Any]:
+    """The reward expression as nested dicts (``op`` and its operands)."""
+    if isinstance(e, R.Const):
+        return {"op": "const", "value": e.value}
+    if isinstance(e, R.Tokens):
+        return {"op": "tokens", "places": list(e.names), "when": "k" if e.prev else "k+1"}
+    if isinstance(e, R.Gated):
+        return {"op": "gated", "gate": reward_tree(e.gate), "expr": reward_tree(e.expr)}
+    if isinstance(e, R.Neg):
+        return {"op": "neg", "arg": reward_tree(e.arg)}
+    if isinstance(e, R.Min):
+        return {"op": "min_active" if e.active else "min", "args": [reward_tree(c) for c in e.children]}
+    name = {R.Sum: "sum", R.Prod: "prod", R.Max: "max"}[type(e)]
+    return {"op": name, "args": [reward_tree(c) for c in e.children]}
+
+
+def to_dict(rs: RewardSystem) -> dict[str, Any]:
+    """Everything about the compiled net as plain JSON-able data (docs/net.schema.json)."""
+    net = rs.net
+    return {
+        "spec": rs.spec.path,
+        "formula": str(rs.spec.formula),
+        "normal_form": str(rs.normal_form),
+        "options": {"conjunction": rs.options.conjunction, "violations": rs.options.violations},
+        "penalty": rs.penalty,
+        "places": [
+            {"name": p.name, "kind": p.kind, "subnet": p.subnet, "label": p.label} for p in net.places
+        ],
+        "transitions": [
+            {
+                "name": t.name,
+                "guard": str(t.guard),
+                "inputs": list(t.inputs),
+                "outputs": list(t.outputs),
+                "subnet": t.subnet,
+            }
+            for t in net.transitions
+        ],
+        "subnets": [
+            {
+                "name": s.name,
+                "kind": s.kind,
+                "role": s.role,
+                "places": [net.places[i].name for i in s.places],
+                "transitions": [net.transitions[i].name for i in s.transitions],
+                "counters": [net.places[i].name for i in s.counters],
+                "formula": s.formula,
+            }
+            for s in net.subnets
+        ],
+        "D_minus": net.D_minus.tolist(),
+        "D_plus": net.D_plus.tolist(),
+        "D": net.D.tolist(),
+        "M0": net.M0.tolist(),
+        "reward": str(rs.reward),
+        "reward_tree": reward_tree(rs.reward),
+    }
+
+
+def to_json(rs: RewardSystem) -> str:
+    return json.dumps(to_dict(rs), indent=2, ensure_ascii=False) + "\n"
+
+
+def to_text(rs: RewardSystem) -> str:
+    """A readable summary: places, transitions with guards, D, M0 and the reward."""
+    net = rs.net
+    out = []
+    if rs.spec.path:
+        out.append(f"spec:        {rs.spec.path}")
+    out.append(f"formula:     {rs.spec.formula}")
+    out.append(f"normal form: {rs.normal_form}")
+    out.append("")
+    out.append(f"sub-nets ({len(net.subnets)}):")
+    for i, s in enumerate(net.subnets):
+        places = ", ".join(net.places[j].name for j in s.places)
+        what = f"  [{s.formula}]" if s.formula else ""
+        out.append(f"  {i}  {s.kind:9}  {s.role:10}  {places}{what}")
+    out.append("")
+    out.append(f"places ({len(net.places)}):")
+    pw = max((len(p.name) for p in net.places), default=1)
+    for i, p in enumerate(net.places):
+        out.append(f"  {p.name.ljust(pw)}  {p.kind:9}  sub-net {p.subnet}  M0={int(net.M0[i])}")
+    out.append("")
+    out.append(f"transitions ({len(net.transitions)}):")
+    tw = max((len(t.name) for t in net.transitions), default=1)
+    for t in net.transitions:
+        arc = f"{', '.join(t.inputs)} -> {', '.join(t.outputs)}"
+        out.append(f"  {t.name.ljust(tw)}  {arc}  when {t.guard}")
+    out.append("")
+    out.append("D = D+ - D-  (rows: transitions, columns: places)")
+    if net.transitions:
+        widths = [len(p.name) for p in net.places]
+        out.append("  " + " " * tw + "  " + "  ".join(p.name for p in net.places))
+        for t, row in zip(net.transitions, net.D):
+            cells = "  ".join(f"{int(v):>{w}d}" for v, w in zip(row, widths))
+            out.append(f"  {t.name.ljust(tw)}  {cells}")
+    else:
+        out.append("  (no transitions)")
+    out.append("")
+    out.append(f"M0 = [{' '.join(str(int(v)) for v in net.M0)}]")
+    out.append("")
+    out.append("reward r(M_k, M_k+1):")
+    out.append(f"  {rs.reward}")
+    out.append("  (p = tokens in place p at step k+1, ~p = at step k)")
+    return "\n".join(out) + "\n"
+
+
+def to_pnml(rs: RewardSystem) -> str:
+    """A standard place/transition net in PNML (2009 grammar, type ptnet).
+
+    Guards and place kinds travel in ``toolspecific`` elements, which other
+    tools ignore.
+    """
+    ET.register_namespace("", PNML_NS)
+    q = lambda tag: f"{{{PNML_NS}}}{tag}"  # noqa: E731
+    root = ET.Element(q("pnml"))
+    net_el = ET.SubElement(root, q("net"), id="net1", type=PTNET_TYPE)
+    name = ET.SubElement(net_el, q("name"))
+    ET.SubElement(name, q("text")).text = str(rs.spec.formula)
+    page = ET.SubElement(net_el, q("page"), id="page1")
+    net = rs.net
+    ids = {}
+    for i, p in enumerate(net.places):
+        pid = f"p{i}"
+        ids[p.name] = pid
+        el = ET.SubElement(page, q("place"), id=pid)
+        n = ET.SubElement(el, q("name"))
+        ET.SubElement(n, q("text")).text = p.name
+        m = ET.SubElement(el, q("initialMarking"))
+        ET.SubElement(m, q("text")).text = str(int(net.M0[i]))
+        tool = ET.SubElement(el, q("toolspecific"), tool="mitlc", version="1")
+        ET.SubElement(tool, q("kind")).text = p.kind
+    arc_id = 0
+    for t in net.transitions:
+        el = ET.SubElement(page, q("transition"), id=t.name)
+        n = ET.SubElement(el, q("name"))
+        ET.SubElement(n, q("text")).text = t.name
+        tool = ET.SubElement(el, q("toolspecific"), tool="mitlc", version="1")
+        ET.SubElement(tool, q("guard")).text = str(t.guard)
+        for src, dst in [(ids[p], t.name) for p in t.inputs] + [(t.name, ids[p]) for p in t.outputs]:
+            arc_id += 1
+            a = ET.SubElement(page, q("arc"), id=f"a{arc_id}", source=src, target=dst)
+            ins = ET.SubElement(a, q("inscription"))
+            ET.SubElement(ins, q("text")).text = "1"
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def to_networkx(rs: RewardSystem) -> nx.DiGraph:
+    """The net as a bipartite :class:`networkx.DiGraph`.
+
+    Nodes are named after the places and transitions.  Place nodes have
+    ``bipartite=0``, ``kind`` ("state" or "timing"), ``tokens`` (M0),
+    ``subnet`` (index into ``net.subnets``) and ``label``; transition nodes
+    ``bipartite=1``, ``guard`` (text) and ``subnet``; every arc has
+    ``weight=1`` and joins a place and a transition (``D-``: place ->
+    transition, ``D+``: transition -> place).  The graph's ``formula`` is the
+    spec's formula.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> from mitlc.petri.compile import compile_spec
+    >>> g = to_networkx(compile_spec(parse_spec("prop a = x < 1\\nformula G a")))
+    >>> g.nodes["p_a"], g.nodes["t1"], list(g.edges("t1", data=True))
+    ({'bipartite': 0, 'kind': 'state', 'tokens': 0, 'subnet': 0, 'label': 'a'}, {'bipartite': 1, 'guard': '!a', 'subnet': 0}, [('t1', 'p_not_a', {'weight': 1})])
+    """
+    net = rs.net
+    g = nx.DiGraph(formula=str(rs.spec.formula))
+    for i, p in enumerate(net.places):
+        g.add_node(p.name, bipartite=0, kind=p.kind, tokens=int(net.M0[i]), subnet=p.subnet, label=p.label)
+    for t in net.transitions:
+        g.add_node(t.name, bipartite=1, guard=str(t.guard), subnet=t.subnet)
+        for p in t.inputs:
+            g.add_edge(p, t.name, weight=1)
+        for p in t.outputs:
+            g.add_edge(t.name, p, weight=1)
+    return g

@@ -1,0 +1,18 @@
+"""Plants: the dynamical systems a spec talks about.
+
+In: nothing (the first stage). Out: :class:`Plant` (state variables with bounds,
+parameters, a batched RK4 ``step``) in the registry :data:`PLANTS`, and
+:func:`make_integrator`, the fastest in-place one-step map a plant offers (the
+pendulum's fused RK4, :mod:`mitlc.plants.pendulum`).
+
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`.
+
+Add a plant: a module here with its dynamics and a :func:`register` call (see
+:mod:`mitlc.plants.mass_damper`), imported below.
+"""
+
+from mitlc.plants.base import PLANTS, Plant, StateVar, make_integrator, register, wrap_angle
+from mitlc.plants.mass_damper import MASS_DAMPER
+from mitlc.plants.pendulum import PENDULUM
+
+__all__ = ["MASS_DAMPER", "PENDULUM", "PLANTS", "Plant", "StateVar", "make_integrator", "register", "wrap_angle"]

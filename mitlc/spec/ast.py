@@ -1,0 +1,364 @@
+"""Immutable syntax trees of MITL formulas.
+
+A handful of frozen, slotted node types.  Every node has ``children`` and
+prints as MITL text that parses back to an equal tree (``parse(str(f)) == f``).
+Source positions are kept for error messages but do not take part in equality.
+
+>>> from mitlc.spec.ast import Atom, Eventually, Globally, Not, And, Weighted
+>>> f = And(Eventually(Globally(Atom("kappa"))), Weighted(10.0, Globally(Not(Atom("psi")))))
+>>> print(f)
+F G kappa & 10 * G !psi
+>>> (Atom("a") & ~Atom("b")) | Atom("c")
+Or(left=And(left=Atom(name='a'), right=Not(child=Atom(name='b'))), right=Atom(name='c'))
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Iterator
+
+__all__ = [
+    "Pos",
+    "Interval",
+    "Formula",
+    "Const",
+    "Atom",
+    "Not",
+    "And",
+    "Or",
+    "Implies",
+    "Iff",
+    "Eventually",
+    "Globally",
+    "Until",
+    "Release",
+    "WeakUntil",
+    "Weighted",
+    "UNBOUNDED",
+    "fmt_number",
+    "walk",
+    "atoms",
+    "depth",
+    "size",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class Pos:
+    """A position in the spec text (1-based line and column)."""
+
+    line: int
+    column: int
+
+
+def fmt_number(x: float) -> str:
+    """Print a number so that it parses back to the same float.
+
+    >>> fmt_number(2.0), fmt_number(0.5), fmt_number(math.inf)
+    ('2', '0.5', 'inf')
+    """
+    if math.isinf(x):
+        return "inf"
+    if x == int(x) and abs(x) < 1e15:
+        return str(int(x))
+    return repr(float(x))
+
+
+@dataclass(frozen=True, slots=True)
+class Interval:
+    """A time interval with open or closed ends; ``hi`` may be ``inf``.
+
+    >>> str(Interval(1, 2, lo_closed=False))
+    '(1,2]'
+    >>> Interval(0, math.inf).is_unbounded
+    True
+    """
+
+    lo: float
+    hi: float
+    lo_closed: bool = True
+    hi_closed: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lo", float(self.lo))
+        object.__setattr__(self, "hi", float(self.hi))
+        if math.isinf(self.hi):
+            object.__setattr__(self, "hi_closed", False)
+
+    @property
+    def is_unbounded(self) -> bool:
+        """True for ``[0, inf)``, the interval of the untimed operators."""
+        return self.lo == 0 and self.lo_closed and math.isinf(self.hi)
+
+    def contains(self, t: float) -> bool:
+        lo_ok = t >= self.lo if self.lo_closed else t > self.lo
+        hi_ok = t <= self.hi if self.hi_closed else t < self.hi
+        return lo_ok and hi_ok
+
+    def __str__(self) -> str:
+        left = "[" if self.lo_closed else "("
+        right = "]" if self.hi_closed else ")"
+        return f"{left}{fmt_number(self.lo)},{fmt_number(self.hi)}{right}"
+
+
+UNBOUNDED = Interval(0.0, math.inf)
+
+# Binding strength used by the printer; higher binds tighter.
+_PREC_IFF, _PREC_IMPLIES, _PREC_OR, _PREC_AND, _PREC_TEMPORAL, _PREC_UNARY, _PREC_ATOM = range(1, 8)
+
+
+class Formula:
+    """Base class of formula nodes."""
+
+    __slots__ = ()
+    prec: int = _PREC_ATOM
+
+    @property
+    def children(self) -> tuple["Formula", ...]:
+        return ()
+
+    def __and__(self, other: "Formula") -> "Formula":
+        return And(self, other)
+
+    def __or__(self, other: "Formula") -> "Formula":
+        return Or(self, other)
+
+    def __invert__(self) -> "Formula":
+        return Not(self)
+
+    def __str__(self) -> str:  # pragma: no cover - every node overrides
+        raise NotImplementedError
+
+
+def _wrap(f: Formula, min_prec: int) -> str:
+    text = str(f)
+    return f"({text})" if f.prec < min_prec else text
+
+
+def _interval_text(interval: Interval | None) -> str:
+    if interval is None or interval == UNBOUNDED:
+        return ""
+    return str(interval)
+
+
+@dataclass(frozen=True, slots=True)
+class Const(Formula):
+    value: bool
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+
+    def __str__(self) -> str:
+        return "true" if self.value else "false"
+
+
+@dataclass(frozen=True, slots=True)
+class Atom(Formula):
+    name: str
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+
+    def __str__(self) -> str:
+        return self.name
+
+
+@dataclass(frozen=True, slots=True)
+class Not(Formula):
+    child: Formula
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_UNARY
+
+    @property
+    def children(self) -> tuple[Formula, ...]:
+        return (self.child,)
+
+    def __str__(self) -> str:
+        return "!" + _wrap(self.child, _PREC_UNARY)
+
+
+@dataclass(frozen=True, slots=True)
+class Weighted(Formula):
+    """``w * phi``: the reward of ``phi`` multiplied by ``w`` (no effect on truth)."""
+
+    weight: float
+    child: Formula
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_UNARY
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "weight", float(self.weight))
+
+    @property
+    def children(self) -> tuple[Formula, ...]:
+        return (self.child,)
+
+    def __str__(self) -> str:
+        return f"{fmt_number(self.weight)} * {_wrap(self.child, _PREC_UNARY)}"
+
+
+@dataclass(frozen=True, slots=True)
+class Eventually(Formula):
+    child: Formula
+    interval: Interval = UNBOUNDED
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_UNARY
+
+    @property
+    def children(self) -> tuple[Formula, ...]:
+        return (self.child,)
+
+    def __str__(self) -> str:
+        return f"F{_interval_text(self.interval)} {_wrap(self.child, _PREC_UNARY)}"
+
+
+@dataclass(frozen=True, slots=True)
+class Globally(Formula):
+    child: Formula
+    interval: Interval = UNBOUNDED
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_UNARY
+
+    @property
+    def children(self) -> tuple[Formula, ...]:
+        return (self.child,)
+
+    def __str__(self) -> str:
+        return f"G{_interval_text(self.interval)} {_wrap(self.child, _PREC_UNARY)}"
+
+
+class _Binary(Formula):
+    __slots__ = ()
+    symbol = "?"
+    right_assoc = False
+
+    @property
+    def children(self) -> tuple[Formula, ...]:
+        return (self.left, self.right)  # type: ignore[attr-defined]
+
+    def _op_text(self) -> str:
+        return self.symbol
+
+    def __str__(self) -> str:
+        left_min = self.prec + 1 if self.right_assoc else self.prec
+        right_min = self.prec if self.right_assoc else self.prec + 1
+        left = _wrap(self.left, left_min)  # type: ignore[attr-defined]
+        right = _wrap(self.right, right_min)  # type: ignore[attr-defined]
+        return f"{left} {self._op_text()} {right}"
+
+
+@dataclass(frozen=True, slots=True)
+class And(_Binary):
+    left: Formula
+    right: Formula
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_AND
+    symbol = "&"
+
+
+@dataclass(frozen=True, slots=True)
+class Or(_Binary):
+    left: Formula
+    right: Formula
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_OR
+    symbol = "|"
+
+
+@dataclass(frozen=True, slots=True)
+class Implies(_Binary):
+    left: Formula
+    right: Formula
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_IMPLIES
+    symbol = "->"
+    right_assoc = True
+
+
+@dataclass(frozen=True, slots=True)
+class Iff(_Binary):
+    left: Formula
+    right: Formula
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    prec = _PREC_IFF
+    symbol = "<->"
+
+
+class _TimedBinary(_Binary):
+    __slots__ = ()
+    prec = _PREC_TEMPORAL
+    right_assoc = True
+
+    def _op_text(self) -> str:
+        return self.symbol + _interval_text(self.interval)  # type: ignore[attr-defined]
+
+
+@dataclass(frozen=True, slots=True)
+class Until(_TimedBinary):
+    """``left U_I right``: right holds at some t in I, left holds before t."""
+
+    left: Formula
+    right: Formula
+    interval: Interval = UNBOUNDED
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    symbol = "U"
+
+
+@dataclass(frozen=True, slots=True)
+class Release(_TimedBinary):
+    """``left R_I right``, the dual of until: ``!(!left U_I !right)``."""
+
+    left: Formula
+    right: Formula
+    interval: Interval = UNBOUNDED
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    symbol = "R"
+
+
+@dataclass(frozen=True, slots=True)
+class WeakUntil(_TimedBinary):
+    """``left W_I right``: ``(left U_I right) | G[0,sup I] left``."""
+
+    left: Formula
+    right: Formula
+    interval: Interval = UNBOUNDED
+    pos: Pos | None = field(default=None, compare=False, repr=False)
+    symbol = "W"
+
+
+def walk(f: Formula) -> Iterator[Formula]:
+    """All nodes of ``f``, parents before children."""
+    stack = [f]
+    while stack:
+        node = stack.pop()
+        yield node
+        stack.extend(reversed(node.children))
+
+
+def atoms(f: Formula) -> tuple[str, ...]:
+    """Proposition names in order of first appearance.
+
+    >>> atoms(Atom("b") & (Atom("a") | Atom("b")))
+    ('b', 'a')
+    """
+    seen: dict[str, None] = {}
+    for node in walk(f):
+        if isinstance(node, Atom):
+            seen.setdefault(node.name)
+    return tuple(seen)
+
+
+def depth(f: Formula) -> int:
+    """Nesting depth (an atom has depth 1); works on any tree whose nodes have ``children``.
+
+    >>> depth(Not(Not(Atom("a"))))
+    3
+    """
+    best, stack = 0, [(f, 1)]
+    while stack:
+        node, d = stack.pop()
+        best = max(best, d)
+        stack.extend((c, d + 1) for c in node.children)
+    return best
+
+
+def size(f: Formula) -> int:
+    """Number of operator nodes (atoms and constants not counted)."""
+    return sum(1 for node in walk(f) if node.children)

@@ -1,0 +1,703 @@
+"""Parse spec text into a checked :class:`~mitlc.spec.model.Spec`.
+
+The one grammar is ``grammar/mitl.lark`` (shipped inside the wheel as
+``mitlc/grammar/mitl.lark``).  One :class:`lark.Transformer` builds the AST
+while the LALR parser runs, so deeply nested input cannot exhaust the Python
+stack.  Every problem becomes a :class:`~mitlc.errors.SpecSyntaxError` or
+:class:`~mitlc.errors.SpecError` with file, line and column.
+
+>>> print(parse_formula("[] (a -> <>[0:2.5] b) && !c"))
+G (a -> F[0,2.5] b) & !c
+>>> parse_formula("F[2,1] a")
+Traceback (most recent call last):
+  ...
+mitlc.errors.SpecError: <spec>:1:3: error: inverted interval [2,1]: the lower end must not exceed the upper
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import lark
+from lark import Lark, Token, Transformer
+
+from mitlc.spec import ast as A
+from mitlc.spec import predicates as P
+from mitlc.errors import MitlError, SpecError, SpecSyntaxError
+from mitlc.plants.base import PLANTS
+from mitlc.spec.model import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
+
+__all__ = ["parse_spec", "load_spec", "parse_formula", "parse_predicate", "MAX_DEPTH", "RESERVED"]
+
+MAX_DEPTH = 64
+"""Deepest formula or predicate nesting accepted."""
+
+RESERVED = frozenset(
+    "F G U R W X true false True False inf infty not and or implies iff eventually always until "
+    "release weak_until prop formula check plant init horizon option in pi e setpoint require band".split()
+)
+
+
+def _grammar_text() -> str:
+    local = Path(__file__).resolve().parents[2] / "grammar" / "mitl.lark"
+    if local.is_file():
+        return local.read_text(encoding="utf-8")
+    return resources.files("mitlc.grammar").joinpath("mitl.lark").read_text(encoding="utf-8")
+
+
+@lru_cache(maxsize=None)
+def _parser(start: str) -> Lark:
+    return Lark(
+        _grammar_text(),
+        parser="lalr",
+        start=start,
+        transformer=_Build(),
+        maybe_placeholders=True,
+    )
+
+
+def _pos(tok: Token) -> A.Pos:
+    return A.Pos(tok.line or 1, tok.column or 1)
+
+
+def _num(tok: Token) -> float:
+    return float(tok)
+
+
+class _Bound:
+    __slots__ = ("value", "pos")
+
+    def __init__(self, value: float, pos: A.Pos) -> None:
+        self.value, self.pos = value, pos
+
+
+class _RawInterval:
+    __slots__ = ("lo", "hi", "lo_closed", "hi_closed")
+
+    def __init__(self, lo: _Bound, hi: _Bound, lo_closed: bool, hi_closed: bool) -> None:
+        self.lo, self.hi, self.lo_closed, self.hi_closed = lo, hi, lo_closed, hi_closed
+
+
+def _interval(raw: _RawInterval | None) -> A.Interval:
+    if raw is None:
+        return A.UNBOUNDED
+    lo, hi = raw.lo.value, raw.hi.value
+    text = f"{'[' if raw.lo_closed else '('}{A.fmt_number(lo)},{A.fmt_number(hi)}{']' if raw.hi_closed else ')'}"
+    where = raw.lo.pos
+    if lo < 0:
+        raise SpecError(f"negative interval {text}: time starts at 0", line=where.line, column=where.column)
+    if math.isinf(lo):
+        raise SpecError(f"interval {text} starts at infinity", line=where.line, column=where.column)
+    if lo > hi:
+        raise SpecError(
+            f"inverted interval {text}: the lower end must not exceed the upper",
+            line=where.line,
+            column=where.column,
+        )
+    if lo == hi and not (raw.lo_closed and raw.hi_closed):
+        raise SpecError(f"empty interval {text}", line=where.line, column=where.column)
+    if math.isinf(hi) and raw.hi_closed:
+        # [a, inf] is read as [a, inf): infinity is never reached.
+        pass
+    return A.Interval(lo, hi, raw.lo_closed, raw.hi_closed and not math.isinf(hi))
+
+
+class _Build(Transformer):
+    """Builds formula and predicate trees; one method per grammar alias."""
+
+    # ---------------------------------------------------------- formulas
+    def atom(self, children: list[Any]) -> A.Formula:
+        (tok,) = children
+        return A.Atom(str(tok), pos=_pos(tok))
+
+    def true_(self, children: list[Any]) -> A.Formula:
+        return A.Const(True, pos=_pos(children[0]))
+
+    def false_(self, children: list[Any]) -> A.Formula:
+        return A.Const(False, pos=_pos(children[0]))
+
+    def not_(self, children: list[Any]) -> A.Formula:
+        op, child = children
+        return A.Not(child, pos=_pos(op))
+
+    def weighted(self, children: list[Any]) -> A.Formula:
+        tok, child = children
+        w = _num(tok)
+        if not (math.isfinite(w) and w > 0):
+            raise SpecError(
+                f"weight {tok} must be positive and finite", line=tok.line, column=tok.column
+            )
+        return A.Weighted(w, child, pos=_pos(tok))
+
+    def eventually(self, children: list[Any]) -> A.Formula:
+        op, interval, child = children
+        return A.Eventually(child, _interval(interval), pos=_pos(op))
+
+    def always(self, children: list[Any]) -> A.Formula:
+        op, interval, child = children
+        return A.Globally(child, _interval(interval), pos=_pos(op))
+
+    def _timed_binary(self, cls: type, children: list[Any]) -> A.Formula:
+        left, op, interval, right = children
+        return cls(left, right, _interval(interval), pos=_pos(op))
+
+    def until(self, children: list[Any]) -> A.Formula:
+        return self._timed_binary(A.Until, children)
+
+    def release(self, children: list[Any]) -> A.Formula:
+        return self._timed_binary(A.Release, children)
+
+    def weak_until(self, children: list[Any]) -> A.Formula:
+        return self._timed_binary(A.WeakUntil, children)
+
+    def _binary(self, cls: type, children: list[Any]) -> A.Formula:
+        left, op, right = children
+        return cls(left, right, pos=_pos(op))
+
+    def and_(self, children: list[Any]) -> A.Formula:
+        return self._binary(A.And, children)
+
+    def or_(self, children: list[Any]) -> A.Formula:
+        return self._binary(A.Or, children)
+
+    def implies(self, children: list[Any]) -> A.Formula:
+        return self._binary(A.Implies, children)
+
+    def iff(self, children: list[Any]) -> A.Formula:
+        return self._binary(A.Iff, children)
+
+    # intervals: children are the two bounds
+    def closed_closed(self, c: list[Any]) -> _RawInterval:
+        return _RawInterval(c[0], c[1], True, True)
+
+    def open_closed(self, c: list[Any]) -> _RawInterval:
+        return _RawInterval(c[0], c[1], False, True)
+
+    def closed_open(self, c: list[Any]) -> _RawInterval:
+        return _RawInterval(c[0], c[1], True, False)
+
+    def open_open(self, c: list[Any]) -> _RawInterval:
+        return _RawInterval(c[0], c[1], False, False)
+
+    # ---------------------------------------------------------- predicates
+    # num/inf_ serve both interval bounds and arithmetic: they return _Bound for
+    # bounds; the arithmetic rules unwrap it.
+    def num(self, children: list[Any]) -> _Bound:
+        (tok,) = children
+        return _Bound(_num(tok), _pos(tok))
+
+    def inf_(self, children: list[Any]) -> _Bound:
+        (tok,) = children
+        return _Bound(math.inf, _pos(tok))
+
+    def var(self, children: list[Any]) -> P.Pred:
+        (tok,) = children
+        name = str(tok)
+        if name in P.CONSTANTS:
+            return P.Num(P.CONSTANTS[name], name=name)
+        return P.Var(name, pos=_pos(tok))
+
+    def call(self, children: list[Any]) -> P.Pred:
+        tok, *args = children
+        name = str(tok)
+        if name not in P.FUNCTIONS:
+            known = ", ".join(sorted(P.FUNCTIONS))
+            raise SpecError(
+                f"unknown function '{name}' (known: {known})", line=tok.line, column=tok.column
+            )
+        arity, _ = P.FUNCTIONS[name]
+        if len(args) != arity:
+            raise SpecError(
+                f"{name}() takes {arity} argument{'s' if arity > 1 else ''}, got {len(args)}",
+                line=tok.line,
+                column=tok.column,
+            )
+        return P.Call(name, tuple(_arith(a) for a in args), pos=_pos(tok))
+
+    def neg(self, children: list[Any]) -> P.Pred:
+        (arg,) = children
+        return P.Neg(_arith(arg))
+
+    def binop(self, children: list[Any]) -> P.Pred:
+        left, op, right = children
+        return P.BinOp(str(op), _arith(left), _arith(right))
+
+    def compare(self, children: list[Any]) -> P.Pred:
+        operands = tuple(_arith(c) for c in children[0::2])
+        ops = tuple(str(t) for t in children[1::2])
+        return P.Compare(operands, ops)
+
+    def p_and(self, children: list[Any]) -> P.Pred:
+        return P.PAnd(_arith(children[0]), _arith(children[2]))
+
+    def p_or(self, children: list[Any]) -> P.Pred:
+        return P.POr(_arith(children[0]), _arith(children[2]))
+
+    def p_not(self, children: list[Any]) -> P.Pred:
+        return P.PNot(_arith(children[1]))
+
+    # ---------------------------------------------------------- statements
+    def prop_def(self, children: list[Any]) -> tuple:
+        tok, pred = children
+        return ("prop", tok, _arith(pred))
+
+    def formula_def(self, children: list[Any]) -> tuple:
+        return ("formula", children[0])
+
+    def check_def(self, children: list[Any]) -> tuple:
+        return ("check", children[0])
+
+    def param(self, children: list[Any]) -> tuple:
+        tok, value = children
+        return (tok, _arith(value))
+
+    def plant_def(self, children: list[Any]) -> tuple:
+        tok, *params = children
+        return ("plant", tok, [p for p in params if p is not None])
+
+    def init_range(self, children: list[Any]) -> tuple:
+        tok, lo, hi = children
+        return (tok, _arith(lo), _arith(hi))
+
+    def init_point(self, children: list[Any]) -> tuple:
+        tok, value = children
+        v = _arith(value)
+        return (tok, v, v)
+
+    def init_def(self, children: list[Any]) -> tuple:
+        return ("init", children)
+
+    def horizon_def(self, children: list[Any]) -> tuple:
+        return ("horizon", _arith(children[0]))
+
+    def setpoint_def(self, children: list[Any]) -> tuple:
+        return ("setpoint", _arith(children[0]))
+
+    def require_bound(self, children: list[Any]) -> tuple:
+        tok, cmp, value, band = children
+        if str(cmp) not in ("<=", "<"):
+            raise SpecError(
+                f"a requirement is an upper bound ('require {tok} <= value') or a range "
+                f"('require {tok} in [a, b]'), not '{cmp}'",
+                line=cmp.line,
+                column=cmp.column,
+            )
+        return ("require", tok, None, _arith(value), None if band is None else _arith(band))
+
+    def require_range(self, children: list[Any]) -> tuple:
+        tok, lo, hi, band = children
+        return ("require", tok, _arith(lo), _arith(hi), None if band is None else _arith(band))
+
+    def option_def(self, children: list[Any]) -> tuple:
+        tok, value = children
+        return ("option", tok, value)
+
+    def start(self, children: list[Any]) -> list:
+        return children
+
+
+def _arith(x: Any) -> P.Pred:
+    if isinstance(x, _Bound):
+        return P.Num(x.value)
+    return x
+
+
+# -------------------------------------------------------------- error mapping
+
+_FRIENDLY = {
+    "NAME": "a name",
+    "PLANT_NAME": "a plant name",
+    "NUMBER": "a number",
+    "$END": "end of input",
+    "LPAR": "'('",
+    "RPAR": "')'",
+    "LSQB": "'['",
+    "RSQB": "']'",
+    "COMMA": "','",
+    "EQUAL": "'='",
+    "STAR": "'*'",
+    "MINUS": "'-'",
+    "PLUS": "'+'",
+    "CMP": "a comparison",
+    "ADDOP": "'+' or '-'",
+    "MULOP": "'*' or '/'",
+    "NOT": "'!'",
+    "AND": "'&'",
+    "OR": "'|'",
+    "IMPLIES": "'->'",
+    "IFF": "'<->'",
+    "FINALLY": "'F'",
+    "GLOBALLY": "'G'",
+    "UNTIL": "'U'",
+    "RELEASE": "'R'",
+    "WEAK": "'W'",
+    "TRUE": "'true'",
+    "FALSE": "'false'",
+    "INF": "'inf'",
+    "_SEP": "',' or ':'",
+}
+
+
+def _friendly(names: set[str]) -> str:
+    out = set()
+    for n in names:
+        if n in _FRIENDLY:
+            out.add(_FRIENDLY[n])
+        elif n.startswith("_") and n[1:].isupper():
+            out.add(f"'{n[1:].lower()}'")
+        else:
+            out.add(n.lower())
+    items = sorted(out)
+    if len(items) > 8:
+        items = items[:8] + ["..."]
+    return ", ".join(items)
+
+
+def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntaxError:
+    if isinstance(exc, lark.exceptions.UnexpectedCharacters):
+        ch = text[exc.pos_in_stream] if exc.pos_in_stream < len(text) else "?"
+        return SpecSyntaxError(
+            f"unexpected character {ch!r}", line=exc.line, column=exc.column, source=text
+        )
+    if isinstance(exc, lark.exceptions.UnexpectedToken):
+        tok = exc.token
+        if tok.type == "$END":
+            lines = text.splitlines() or [""]
+            line, col = len(lines), len(lines[-1]) + 1
+            return SpecSyntaxError(
+                f"unexpected end of input, expected {_friendly(set(exc.expected))}",
+                line=line,
+                column=col,
+                source=text,
+            )
+        return SpecSyntaxError(
+            f"unexpected {str(tok)!r}, expected {_friendly(set(exc.expected))}",
+            line=tok.line,
+            column=tok.column,
+            source=text,
+        )
+    lines = text.splitlines() or [""]
+    return SpecSyntaxError(
+        "unexpected end of input", line=len(lines), column=len(lines[-1]) + 1, source=text
+    )
+
+
+def _run(start: str, text: str, path: str | None) -> Any:
+    try:
+        return _parser(start).parse(text)
+    except lark.exceptions.UnexpectedInput as exc:
+        raise _syntax_error(exc, text).located(path) from None
+    except lark.exceptions.VisitError as exc:  # pragma: no cover - lark wraps some callbacks
+        inner = exc.orig_exc
+        if isinstance(inner, MitlError):
+            raise inner.located(path, text) from None
+        raise
+    except MitlError as exc:
+        raise exc.located(path, text) from None
+
+
+# -------------------------------------------------------------- checks
+
+
+_depth = A.depth  # iterative: safe on the deepest input
+
+
+def _check_depth(f: A.Formula) -> None:
+    if _depth(f) > MAX_DEPTH:
+        pos = getattr(f, "pos", None)
+        raise SpecError(
+            f"formula nesting too deep (more than {MAX_DEPTH} levels)",
+            line=pos.line if pos else None,
+            column=pos.column if pos else None,
+        )
+
+
+def parse_formula(text: str) -> A.Formula:
+    """Parse one formula (no spec statements)."""
+    f = _run("formula", text, None)
+    try:
+        _check_depth(f)
+    except MitlError as exc:
+        raise exc.located(None, text) from None
+    return f
+
+
+def parse_predicate(text: str) -> P.Pred:
+    """Parse one predicate over state variables."""
+    return _arith(_run("pred", text, None))
+
+
+def _const(p: P.Pred, what: str, pos: Token) -> float:
+    if P.is_boolean(p):
+        raise SpecError(f"{what} must be a number, not a condition", line=pos.line, column=pos.column)
+    names = P.variables(p)
+    if names:
+        v = names[0]
+        where = v.pos or _pos(pos)
+        raise SpecError(
+            f"{what} must be a constant, but uses '{v.name}'", line=where.line, column=where.column
+        )
+    value = P.const_value(p)
+    assert value is not None
+    if math.isnan(value):
+        raise SpecError(f"{what} is not a number", line=pos.line, column=pos.column)
+    return value
+
+
+def parse_spec(text: str, path: str | None = None) -> Spec:
+    """Parse and check a whole spec; raise a located :class:`MitlError` if it is wrong."""
+    try:
+        return _parse_spec(text, path)
+    except MitlError as exc:
+        raise exc.located(path, text) from None
+
+
+def _parse_spec(text: str, path: str | None) -> Spec:
+    statements = _run("start", text, path)
+    warnings: list[str] = []
+    props: dict[str, PropDef] = {}
+    formula = check = None
+    plant_name: str | None = None
+    plant_params: dict[str, float] = {}
+    init: dict[str, InitRange] = {}
+    horizon: float | None = None
+    options: dict[str, str] = {}
+    setpoint: float | None = None
+    requirements: dict[str, Requirement] = {}
+    seen: dict[str, Token] = {}
+
+    def once(key: str, tok: Token) -> None:
+        if key in seen:
+            first = seen[key]
+            raise SpecError(
+                f"'{key}' given twice (first at line {first.line})", line=tok.line, column=tok.column
+            )
+        seen[key] = tok
+
+    # Plant first: the state variables it declares are needed to check predicates.
+    for st in statements:
+        if st[0] == "plant":
+            _, tok, params = st
+            once("plant", tok)
+            name = str(tok)
+            if name not in PLANTS:
+                raise SpecError(
+                    f"unknown plant '{name}' (known: {', '.join(sorted(PLANTS))})",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            plant_name = name
+            for ptok, value in params:
+                pname = str(ptok)
+                if pname not in PLANTS[name].defaults:
+                    raise SpecError(
+                        f"plant '{name}' has no parameter '{pname}' "
+                        f"(known: {', '.join(sorted(PLANTS[name].defaults))})",
+                        line=ptok.line,
+                        column=ptok.column,
+                    )
+                v = _const(value, f"parameter '{pname}'", ptok)
+                if not (math.isfinite(v) and v > 0):
+                    raise SpecError(
+                        f"parameter '{pname}' must be positive and finite, got {A.fmt_number(v)}",
+                        line=ptok.line,
+                        column=ptok.column,
+                    )
+                plant_params[pname] = v
+    plant = PLANTS.get(plant_name) if plant_name else None
+    state_names = set(plant.state_names) if plant else None
+
+    def check_vars(pred: P.Pred) -> None:
+        for v in P.variables(pred):
+            if state_names is not None and v.name not in state_names:
+                pos = v.pos or A.Pos(1, 1)
+                raise SpecError(
+                    f"unknown state variable '{v.name}' (plant '{plant_name}' has: "
+                    f"{', '.join(plant.state_names)})",  # type: ignore[union-attr]
+                    line=pos.line,
+                    column=pos.column,
+                )
+
+    first_formula_tok = None
+    for st in statements:
+        kind = st[0]
+        if kind == "prop":
+            _, tok, pred = st
+            name = str(tok)
+            if name in RESERVED:
+                raise SpecError(
+                    f"'{name}' is a reserved word and cannot name a proposition",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            if name in props:
+                first = props[name].pos
+                raise SpecError(
+                    f"proposition '{name}' defined twice (first at line {first.line if first else '?'})",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            if not P.is_boolean(pred):
+                raise SpecError(
+                    f"proposition '{name}' must be a condition such as 'abs(q) < 0.3', not a number",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            if _depth(pred) > MAX_DEPTH:
+                raise SpecError(
+                    f"predicate of '{name}' nested too deep (more than {MAX_DEPTH} levels)",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            check_vars(pred)
+            props[name] = PropDef(name, pred, pos=_pos(tok))
+        elif kind in ("formula", "check"):
+            f = st[1]
+            _check_depth(f)
+            if kind == "formula":
+                if formula is not None:
+                    pos = getattr(f, "pos", None) or A.Pos(1, 1)
+                    raise SpecError("more than one 'formula'", line=pos.line, column=pos.column)
+                formula = f
+            else:
+                if check is not None:
+                    pos = getattr(f, "pos", None) or A.Pos(1, 1)
+                    raise SpecError("more than one 'check'", line=pos.line, column=pos.column)
+                check = f
+        elif kind == "init":
+            for tok, lo_p, hi_p in st[1]:
+                var = str(tok)
+                if state_names is not None and var not in state_names:
+                    raise SpecError(
+                        f"unknown state variable '{var}' in init (plant '{plant_name}' has: "
+                        f"{', '.join(sorted(state_names))})",
+                        line=tok.line,
+                        column=tok.column,
+                    )
+                if var in init:
+                    raise SpecError(f"initial range of '{var}' given twice", line=tok.line, column=tok.column)
+                lo = _const(lo_p, f"initial bound of '{var}'", tok)
+                hi = _const(hi_p, f"initial bound of '{var}'", tok)
+                if not (math.isfinite(lo) and math.isfinite(hi)):
+                    raise SpecError(f"initial range of '{var}' must be finite", line=tok.line, column=tok.column)
+                if lo > hi:
+                    raise SpecError(
+                        f"inverted initial range of '{var}': [{A.fmt_number(lo)}, {A.fmt_number(hi)}]",
+                        line=tok.line,
+                        column=tok.column,
+                    )
+                init[var] = InitRange(var, lo, hi)
+        elif kind == "horizon":
+            value = st[1]
+            tok = Token("HORIZON", "horizon", line=1, column=1)
+            h = _const(value, "horizon", tok)
+            if not (math.isfinite(h) and h > 0):
+                raise SpecError(f"horizon must be positive and finite, got {A.fmt_number(h)}")
+            if horizon is not None:
+                raise SpecError("'horizon' given twice")
+            horizon = h
+        elif kind == "setpoint":
+            tok = Token("SETPOINT", "setpoint", line=1, column=1)
+            if setpoint is not None:
+                raise SpecError("'setpoint' given twice")
+            setpoint = _const(st[1], "setpoint", tok)
+            if not math.isfinite(setpoint):
+                raise SpecError("setpoint must be finite")
+        elif kind == "require":
+            _, tok, lo_p, hi_p, band_p = st
+            name = str(tok)
+            if name not in CRITERIA:
+                raise SpecError(
+                    f"unknown criterion '{name}' (known: {', '.join(CRITERIA)})", line=tok.line, column=tok.column
+                )
+            if name in requirements:
+                raise SpecError(f"criterion '{name}' required twice", line=tok.line, column=tok.column)
+            hi = _const(hi_p, f"bound of {name}", tok)
+            lo = 0.0 if lo_p is None else _const(lo_p, f"bound of {name}", tok)
+            if not (math.isfinite(lo) and math.isfinite(hi)) or lo < 0 or lo > hi:
+                raise SpecError(
+                    f"bounds of {name} must be finite with 0 <= lower <= upper, got "
+                    f"[{A.fmt_number(lo)}, {A.fmt_number(hi)}]",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            band = None
+            if band_p is not None:
+                if name != "settling_time":
+                    raise SpecError(f"only settling_time takes a band, not {name}", line=tok.line, column=tok.column)
+                band = _const(band_p, "band", tok)
+                if not 0 < band < 1:
+                    raise SpecError(f"band must be a fraction in (0, 1), got {A.fmt_number(band)}",
+                                    line=tok.line, column=tok.column)
+            requirements[name] = Requirement(name, lo, hi, band, pos=_pos(tok))
+        elif kind == "option":
+            _, tok, value = st
+            key = str(tok)
+            if key not in OPTIONS:
+                raise SpecError(
+                    f"unknown option '{key}' (known: {', '.join(sorted(OPTIONS))})",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            val = str(value) if isinstance(value, Token) else str(value)
+            if val not in OPTIONS[key]:
+                raise SpecError(
+                    f"option '{key}' must be one of {', '.join(OPTIONS[key])}, got '{val}'",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            once(f"option {key}", tok)
+            options[key] = val
+
+    if formula is None and not requirements:
+        lines = text.splitlines() or [""]
+        raise SpecError("the spec has no 'formula' (nor any 'require')", line=len(lines), column=1)
+
+    for f in (formula, check):
+        if f is None:
+            continue
+        for node in A.walk(f):
+            if isinstance(node, A.Atom) and node.name not in props:
+                pos = node.pos or A.Pos(1, 1)
+                hint = f"defined: {', '.join(props)}" if props else "define it with 'prop NAME = condition'"
+                raise SpecError(
+                    f"undefined proposition '{node.name}'", line=pos.line, column=pos.column, hint=hint
+                )
+    used = set(A.atoms(formula)) if formula is not None else set()
+    used |= set(A.atoms(check)) if check is not None else set()
+    for name, p in props.items():
+        if name not in used:
+            pos = p.pos or A.Pos(1, 1)
+            warnings.append(f"{path or '<spec>'}:{pos.line}:{pos.column}: warning: proposition '{name}' is never used")
+
+    return Spec(
+        formula=formula,
+        props=tuple(props.values()),
+        check=check,
+        plant_name=plant_name,
+        plant_params=tuple(plant_params.items()),
+        init=tuple(init.values()),
+        horizon=horizon,
+        options=tuple(options.items()),
+        setpoint=0.0 if setpoint is None else setpoint,
+        requirements=tuple(requirements.values()),
+        path=path,
+        source=text,
+        warnings=tuple(warnings),
+    )
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and check a ``.mitl`` file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SpecError(f"cannot read spec: {exc.strerror}", file=str(path)) from None
+    except UnicodeDecodeError:
+        raise SpecError("spec is not UTF-8 text", file=str(path)) from None
+    return parse_spec(text, str(path))

@@ -1,0 +1,109 @@
+"""The package's layout is the pipeline: no module imports a later stage.
+
+Each subpackage of ``mitlc`` is one stage; a module may import its own stage and the
+stages listed for it in ``ALLOWED`` (the same lists stand in each ``__init__``'s
+docstring). Imports inside functions count too: a lazy import of a later stage is
+still a dependency on it.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "mitlc"
+
+BASE = {"errors", "fileio"}
+ALLOWED: dict[str, set[str]] = {
+    "errors": set(),
+    "fileio": {"errors"},
+    "plants": BASE,
+    "spec": BASE | {"plants"},
+    "petri": BASE | {"plants", "spec"},
+    "hybrid": BASE | {"plants", "spec"},
+    "monitor": BASE | {"plants", "spec"},
+    "learn": BASE | {"plants", "spec", "petri", "hybrid"},
+    "sweep": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn"},
+    "gym": BASE | {"plants", "spec", "petri", "monitor", "learn"},
+    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn", "sweep", "gym"},
+}
+"""Stage -> the stages it may import."""
+
+FACADE = {"__init__", "__main__"}
+"""``mitlc/__init__.py`` (the public API) and ``__main__`` may import any stage."""
+
+
+def stage_of_module(dotted: str) -> str | None:
+    """``mitlc.petri.net`` -> ``petri``; ``mitlc`` itself -> ``""``; not ours -> None."""
+    parts = dotted.split(".")
+    if parts[0] != "mitlc":
+        return None
+    return parts[1] if len(parts) > 1 else ""
+
+
+def modules() -> list[Path]:
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def stage_of_file(path: Path) -> str:
+    rel = path.relative_to(PACKAGE)
+    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def imported(path: Path) -> list[tuple[int, str]]:
+    """(line, dotted module) of every absolute import of a ``mitlc`` module in ``path``."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            assert node.level == 0, f"{path}:{node.lineno}: use absolute imports"
+            if node.module == "mitlc":  # from mitlc import x: x is a stage or a name of the facade
+                out += [(node.lineno, f"mitlc.{a.name}") for a in node.names]
+            elif node.module:
+                out.append((node.lineno, node.module))
+    return [(line, m) for line, m in out if m.split(".")[0] == "mitlc"]
+
+
+def test_every_file_has_a_stage() -> None:
+    stages = {stage_of_file(p) for p in modules()} - FACADE
+    assert stages == set(ALLOWED), stages ^ set(ALLOWED)
+
+
+@pytest.mark.parametrize("path", modules(), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_no_import_of_a_later_stage(path: Path) -> None:
+    own = stage_of_file(path)
+    if own in FACADE:
+        return
+    bad = []
+    for line, dotted in imported(path):
+        other = stage_of_module(dotted)
+        if other == "__version__" or other == own:
+            continue
+        if other == "":  # the facade: importing it pulls in petri and spec
+            bad.append(f"line {line}: {dotted} (the facade; import the stage's module)")
+        elif other not in ALLOWED[own]:
+            bad.append(f"line {line}: {dotted} ({other} is not an earlier stage of {own})")
+    assert not bad, f"{path.relative_to(PACKAGE.parent)}:\n" + "\n".join(bad)
+
+
+def test_the_checker_sees_a_violation(tmp_path: Path) -> None:
+    """The import scan catches a lazy import inside a function (so the test above can fail)."""
+    f = tmp_path / "m.py"
+    f.write_text("def f():\n    from mitlc.cli.main import main\n    import mitlc.learn.sacpn\n")
+    assert imported(f) == [(2, "mitlc.cli.main"), (3, "mitlc.learn.sacpn")]
+
+
+@pytest.mark.parametrize("stage", sorted(s for s in ALLOWED if (PACKAGE / s).is_dir()))
+def test_each_stage_says_what_it_may_import(stage: str) -> None:
+    """Each subpackage's docstring names what goes in, what comes out, and what it may import."""
+    doc = importlib.import_module(f"mitlc.{stage}").__doc__ or ""
+    assert "In:" in doc and "Out:" in doc and "May import:" in doc, stage
+    # the stages named under "May import" are the ones ALLOWED lists
+    said = doc.split("May import:")[1].split("\n\n")[0]
+    named = {s for s in ALLOWED if f"mitlc.{s}`" in said}
+    assert named == ALLOWED[stage] or said.strip().startswith("every stage"), (stage, named ^ ALLOWED[stage])
