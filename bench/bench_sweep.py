@@ -2,7 +2,7 @@
 
 Runs the same small sweep (problem 2, ``weight.psi=1,2,5,10`` x 2 seeds = 8
 tasks of 30 runs x 100 trials by default) into a fresh directory once per
-worker count, through :func:`mitlc.sweep.engine.run_sweep` exactly as the command
+worker count, through :func:`mitlc.sweep.run_sweep` exactly as the command
 does, and prints tasks per minute (wall time of the whole sweep, worker start
 included) and the speed-up of 2 workers over 1.  It also checks that every
 worker count gave the same metrics.  ``--backend ray`` measures Ray instead
@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitlc.spec.parse import load_spec  # noqa: E402
-from mitlc.sweep.engine import LocalBackend, RayBackend, plan_sweep, run_sweep  # noqa: E402
+from mitlc.sweep import LocalBackend, RayBackend, plan_sweep, run_sweep  # noqa: E402
 
 SPEC = ROOT / "specs" / "pendulum" / "p2_avoid.mitl"
 GRID = ("weight.psi=1,2,5,10",)

@@ -24,7 +24,8 @@ sys.path.insert(0, str(ROOT))
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
 from mitlc.learn.plots import png_bytes  # noqa: E402
-from mitlc.sweep.engine import atomic_write, heatmap_figure, plan_sweep, summarize, with_weights  # noqa: E402
+from mitlc.fileio import atomic_write  # noqa: E402
+from mitlc.sweep import heatmap_figure, plan_sweep, summarize, with_weights  # noqa: E402
 
 SPEC = "specs/pendulum/p2_avoid.mitl"
 WEIGHTS = (1, 2, 5, 10, 20)

@@ -23,7 +23,7 @@ from mitlc.errors import InputError
 from mitlc.monitor.offline import monitor
 from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 from mitlc.learn.sacpn import Sacpn, SacpnSettings
-from mitlc.sweep.engine import (
+from mitlc.sweep import (
     LocalBackend,
     RayBackend,
     ResultStore,
@@ -299,7 +299,7 @@ class _InstantBackend:
 
 def test_rewrites_are_coalesced_when_results_come_faster_than_the_files_are_written(short_spec, tmp_path,
                                                                                       monkeypatch):
-    import mitlc.sweep.engine as sweep_mod
+    import mitlc.sweep.run as sweep_mod
 
     plan = plan_sweep(load_spec(short_spec), ["weight.psi=" + ",".join(str(w) for w in range(1, 201))], [0], 2, 3)
     writes = []

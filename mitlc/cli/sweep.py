@@ -1,4 +1,4 @@
-"""``mitlc sweep``: a thin click command over :mod:`mitlc.sweep.engine`.
+"""``mitlc sweep``: a thin click command over :mod:`mitlc.sweep`.
 
 ``mitlc sweep SPEC --grid sigma=1,2,3 --grid weight.psi=1,3,10 --seeds 3``
 trains every configuration of the grid with every seed, one task each, on a
@@ -27,7 +27,7 @@ def _list(spec) -> str:
     """Every grid name: weights with their subformulas, options, trainer settings; current values."""
     from mitlc.learn.sacpn import SacpnSettings
     from mitlc.spec.model import OPTIONS
-    from mitlc.sweep.engine import format_value, sweepable_settings, weight_sites
+    from mitlc.sweep import format_value, sweepable_settings, weight_sites
 
     lines = [f"{spec.path}: formula {spec.formula}", "", "weights (value: the weighted subformula):"]
     sites = weight_sites(spec.formula)
@@ -85,7 +85,7 @@ def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_r
 
     from mitlc.spec.parse import load_spec
     from mitlc.learn.plots import png_bytes
-    from mitlc.sweep.engine import LocalBackend, RayBackend, format_table, heatmap_figure, plan_sweep, run_sweep, summarize
+    from mitlc.sweep import LocalBackend, RayBackend, format_table, heatmap_figure, plan_sweep, run_sweep, summarize
 
     spec = load_spec(spec_path)
     for w in spec.warnings:

@@ -1,0 +1,196 @@
+"""Where a sweep's tasks run: :class:`LocalBackend` (a process pool, no extra dependency)
+and :class:`RayBackend` (``pip install 'mitlc[ray]'``), both retrying tasks whose worker was lost.
+
+A backend is anything with ``describe() -> str`` and ``run(payloads) -> Iterator[(payload, record or exception)]``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter, deque
+from typing import Any, Callable, Iterator, Sequence
+from mitlc.errors import InputError
+from mitlc.sweep.task import run_task
+
+
+# ---------------------------------------------------------------- backends
+
+
+class WorkerLost(RuntimeError):
+    """A task's worker died more often than the retries allow."""
+
+
+def default_workers() -> int:
+    """``min(2, cores)``: the local backend's default number of processes."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(2, cores))
+
+
+Outcome = tuple[dict, "dict | BaseException"]
+
+
+class LocalBackend:
+    """A pool of ``workers`` processes on this machine (``concurrent.futures``, spawned interpreters).
+
+    At most ``workers`` tasks are in flight.  When a worker dies (killed, out
+    of memory) the pool breaks; the tasks that were in flight are run again in
+    a new pool, each at most ``max_retries`` more times.
+    """
+
+    name = "local"
+
+    def __init__(self, workers: int | None = None, max_retries: int = 3,
+                 on_retry: Callable[[dict, int], None] | None = None) -> None:
+        self.workers = int(workers or default_workers())
+        self.max_retries = int(max_retries)
+        self.on_retry = on_retry
+        """Called with the payload and the attempt about to start when a lost task is run again."""
+        if self.workers < 1:
+            raise InputError("--workers must be at least 1", file="--workers")
+
+    def describe(self) -> str:
+        return f"local, {self.workers} worker{'s' if self.workers != 1 else ''}"
+
+    def run(self, payloads: Sequence[dict]) -> Iterator[Outcome]:
+        import multiprocessing
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        queue = deque(payloads)
+        losses: Counter[str] = Counter()
+        ctx = multiprocessing.get_context("spawn")
+        pool: ProcessPoolExecutor | None = None
+        running: dict = {}
+        try:
+            while queue or running:
+                if pool is None:
+                    pool = ProcessPoolExecutor(self.workers, mp_context=ctx)
+                broken = False
+                while queue and len(running) < self.workers and not broken:
+                    p = queue.popleft()
+                    try:
+                        running[pool.submit(run_task, p)] = p
+                    except BrokenProcessPool:
+                        queue.appendleft(p)
+                        broken = True
+                if not broken:
+                    done, _ = wait(running, return_when=FIRST_COMPLETED)
+                    broken = any(isinstance(f.exception(), BrokenProcessPool) for f in done)
+                if broken:  # every task in flight is lost with the pool: wait until all say so
+                    wait(running)
+                    done = set(running)
+                outcomes: list[Outcome] = []
+                for fut in done:
+                    p = running.pop(fut)
+                    exc = fut.exception()
+                    if isinstance(exc, BrokenProcessPool):
+                        losses[p["key"]] += 1
+                        if losses[p["key"]] > self.max_retries:
+                            outcomes.append((p, WorkerLost(f"its worker died {losses[p['key']]} times")))
+                        else:
+                            queue.appendleft(p)
+                            if self.on_retry is not None:
+                                self.on_retry(p, losses[p["key"]] + 1)
+                    else:
+                        outcomes.append((p, exc if exc is not None else fut.result()))
+                if broken:
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    pool = None
+                else:  # give the idle workers their next tasks before the results are written
+                    while queue and len(running) < self.workers:
+                        p = queue.popleft()
+                        try:
+                            running[pool.submit(run_task, p)] = p
+                        except BrokenProcessPool:
+                            queue.appendleft(p)
+                            break
+                yield from outcomes
+        finally:
+            if pool is not None:
+                if running:  # stopped early (an interrupt): do not let the workers finish their tasks
+                    _terminate_workers(pool)
+                pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _terminate_workers(pool: Any) -> None:
+    """End a process pool's workers now (``terminate_workers`` from Python 3.14; before, its process table)."""
+    if hasattr(pool, "terminate_workers"):
+        pool.terminate_workers()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            proc.terminate()
+        except (OSError, ValueError):  # already gone
+            pass
+
+
+class RayBackend:
+    """Ray tasks (``pip install 'mitlc[ray]'``) on a cluster or on a Ray started for the sweep.
+
+    ``address``: a running cluster (``auto``, ``HOST:6379`` or ``ray://HOST:10001``);
+    without it, ``RAY_ADDRESS`` if set, else a new local Ray with ``workers``
+    CPUs is started (even if a ``ray start`` cluster runs on this machine) and
+    stopped again at the end.  Each task asks for one CPU and
+    is retried up to ``max_retries`` times if its worker or node dies.
+    """
+
+    name = "ray"
+
+    def __init__(self, address: str | None = None, workers: int | None = None, max_retries: int = 3) -> None:
+        self.address = address or os.environ.get("RAY_ADDRESS") or None
+        self.workers = int(workers or default_workers())
+        self.max_retries = int(max_retries)
+
+    def describe(self) -> str:
+        return f"ray at {self.address}" if self.address else f"ray, local, {self.workers} CPUs"
+
+    @staticmethod
+    def _import():
+        try:
+            import ray
+        except ImportError:
+            raise InputError("the ray backend needs Ray", file="--backend",
+                             hint="pip install 'mitlc[ray]' (or use --backend local)") from None
+        return ray
+
+    def run(self, payloads: Sequence[dict]) -> Iterator[Outcome]:
+        import logging
+
+        ray = self._import()
+        connected_here = False
+        if not ray.is_initialized():
+            try:
+                if self.address:
+                    ray.init(address=self.address, logging_level=logging.WARNING, log_to_driver=False)
+                else:
+                    # "local": a new Ray for this sweep, even if a `ray start` cluster runs on this machine
+                    ray.init(address="local", num_cpus=self.workers, include_dashboard=False,
+                             logging_level=logging.WARNING, log_to_driver=False)
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                raise InputError(f"cannot start or reach Ray: {exc}", file="--address") from None
+            connected_here = True
+        remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(run_task)
+        refs = {}
+        try:
+            refs = {remote.remote(p): p for p in payloads}
+            while refs:
+                done, _ = ray.wait(list(refs), num_returns=1)
+                for ref in done:
+                    p = refs.pop(ref)
+                    try:
+                        yield p, ray.get(ref)
+                    except ray.exceptions.RayTaskError as exc:
+                        yield p, exc.cause if isinstance(exc.cause, BaseException) else exc
+                    except ray.exceptions.RayError as exc:
+                        yield p, exc
+        finally:
+            for ref in refs:
+                try:
+                    ray.cancel(ref, force=True)
+                except Exception:  # noqa: BLE001 - best effort while stopping
+                    pass
+            if connected_here:
+                ray.shutdown()

@@ -1,0 +1,71 @@
+"""One task of a sweep: parse, reweight, compile, train, judge; a pure function of its payload.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections import Counter
+from typing import Any, Mapping
+from mitlc.errors import TrainingError
+from mitlc.sweep.grid import with_weights
+
+
+FINAL_TRIALS = 10
+"""The final mean return is the mean over runs of the last this many trials (as ``mitlc train`` prints)."""
+
+
+# ---------------------------------------------------------------- one task
+
+
+def run_task(payload: Mapping[str, Any]) -> dict:
+    """Train and judge one configuration and seed; a pure function of ``payload`` (bar the times and ``host``).
+
+    Returns the result record: the resolved configuration, ``seed``,
+    ``success_rate`` (fraction of runs whose final greedy rollout satisfies the
+    spec by :mod:`mitlc.monitor.offline`), ``final_return`` (mean over runs of the last
+    10 trials' returns), ``greedy_return`` (mean return of those rollouts),
+    ``failing`` (for the runs that fail, how many fail by each subformula,
+    the monitor's blame), ``wall_s`` and ``cpu_s`` (the task's wall and CPU seconds: a wall time well
+    above the CPU time means the worker waited for a core) and ``host``.  Training that diverges is a result too: the
+    metrics are None and ``error`` says why.
+    """
+    import numpy as np
+
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.monitor.offline import monitor
+    from mitlc.spec.parse import parse_spec
+    from mitlc.learn.sacpn import Sacpn, SacpnSettings
+
+    start, cpu_start = time.perf_counter(), time.process_time()
+    spec = with_weights(parse_spec(payload["spec_text"], payload.get("spec_path")), payload["weights"])
+    rs = compile_spec(spec, CompileOptions(**payload["options"]))
+    agent = Sacpn(rs, SacpnSettings.from_dict(payload["settings"]), runs=int(payload["runs"]),
+                  seed=int(payload["seed"]))
+    record: dict[str, Any] = {
+        "task": payload["key"],
+        "seed": int(payload["seed"]),
+        "settings": payload["settings"],
+        "weights": payload["weights"],
+        "options": payload["options"],
+        "success_rate": None,
+        "final_return": None,
+        "greedy_return": None,
+        "failing": {},
+        "error": None,
+    }
+    try:
+        agent.train(int(payload["trials"]))
+    except TrainingError as exc:
+        record["error"] = exc.message
+    else:
+        ro = agent.rollout(agent.evaluation_states())
+        verdict = monitor(spec, ro.states, ro.dt, spec.monitor_formula)
+        record["success_rate"] = float(np.mean(verdict.satisfied))
+        record["final_return"] = float(agent.returns[:, -FINAL_TRIALS:].mean())
+        record["greedy_return"] = float(ro.returns.mean())
+        record["failing"] = dict(sorted(Counter(f for f in verdict.failing if f is not None).items()))
+    record["wall_s"] = round(time.perf_counter() - start, 3)
+    record["cpu_s"] = round(time.process_time() - cpu_start, 3)
+    record["host"] = socket.gethostname()
+    return record
