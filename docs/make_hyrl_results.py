@@ -31,7 +31,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.hybrid.automaton import compile_requirements, render_bytes  # noqa: E402
+from mitlc.hybrid import compile_requirements, render_bytes  # noqa: E402
 from mitlc.fileio import atomic_write  # noqa: E402
 from mitlc.learn.hyrl import (  # noqa: E402
     HANDOVER_SIGMA,

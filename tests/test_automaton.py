@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from mitlc.hybrid.automaton import (
+from mitlc.hybrid import (
     FALSE,
     TRUE,
     AllOf,

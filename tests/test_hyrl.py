@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.hybrid.automaton import compile_requirements
+from mitlc.hybrid import compile_requirements
 from mitlc.hybrid.criteria import check
 from mitlc.errors import TrainingError
 from mitlc.learn.hyrl import (

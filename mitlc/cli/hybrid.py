@@ -289,7 +289,7 @@ def train_hybrid_cli(
 @handle_errors
 def automaton(spec: str, fmt: str, output: str | None) -> None:
     """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B)."""
-    from mitlc.hybrid.automaton import compile_requirements, render_bytes
+    from mitlc.hybrid import compile_requirements, render_bytes
     from mitlc.spec.parse import load_spec
 
     s = load_spec(spec)

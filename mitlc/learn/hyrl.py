@@ -47,7 +47,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from mitlc.hybrid.automaton import HybridAutomaton, RewardConstants, compile_requirements
+from mitlc.hybrid import HybridAutomaton, RewardConstants, compile_requirements
 from mitlc.hybrid.criteria import Verdict, check
 from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import atomic_write
@@ -441,7 +441,7 @@ class HybridLearner:
         """Per mode, the value its mode part starts at (``settings.critic_init``):
         ``c / (1 - gamma)`` for the constant part ``c`` of the mode's reward (its constants
         and stay bonus) kept forever; under ``stay`` only where ``c > 0``; zeros under ``zero``."""
-        from mitlc.hybrid.automaton import Const, StayBonus
+        from mitlc.hybrid import Const, StayBonus
 
         out = np.zeros(self.n_modes)
         how = self.settings.critic_init
