@@ -5,6 +5,10 @@ of columns, or files (CSV, ``.npz``: :mod:`mitlc.monitor.trace`). Out:
 :class:`MonitorResult`, the Boolean verdict and the robustness of each trace under
 the standard finite-trace MITL semantics (docs/monitor.md), and where a trace failed.
 
+:mod:`~mitlc.monitor.offline` evaluates a formula node by node over whole traces with
+the array kernels of :mod:`~mitlc.monitor.kernels`; :mod:`~mitlc.monitor.trace` reads
+recorded traces from files.
+
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`.
 """
@@ -18,5 +22,16 @@ from mitlc.monitor.offline import (
     signals,
     state_columns,
 )
+from mitlc.monitor.trace import Trace, read_trace
 
-__all__ = ["TIME_TOL", "MonitorResult", "monitor", "needed_variables", "offsets", "signals", "state_columns"]
+__all__ = [
+    "TIME_TOL",
+    "MonitorResult",
+    "Trace",
+    "monitor",
+    "needed_variables",
+    "offsets",
+    "read_trace",
+    "signals",
+    "state_columns",
+]

@@ -56,17 +56,15 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from mitlc.errors import CompileError, InputError, SpecError
+from mitlc.monitor.kernels import BOOL, REAL, TIME_TOL, Lattice, offsets, until, window
+from mitlc.plants.base import wrap_angle
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
-from mitlc.errors import CompileError, InputError, SpecError
-from mitlc.plants.base import wrap_angle
 from mitlc.spec.model import Spec
 
 __all__ = ["MonitorResult", "monitor", "signals", "offsets", "state_columns", "needed_variables", "TIME_TOL"]
 
-TIME_TOL = 1e-9
-"""Tolerance (seconds, relative to the bound when it exceeds 1) when a sample
-time is compared with an interval end."""
 
 
 # ----------------------------------------------------------------- result
@@ -84,187 +82,6 @@ class MonitorResult:
     """``(R,)`` float: first time (s) at which the verdict became certain-false, nan where satisfied."""
     failing: tuple[str | None, ...]
     """Per run: text of the smallest subformula responsible for the violation, None if satisfied."""
-
-
-# ----------------------------------------------------------------- lattices
-
-
-@dataclass(frozen=True)
-class _Lattice:
-    """Booleans or reals with their join, meet, bottom and top."""
-
-    name: str
-    join: np.ufunc
-    meet: np.ufunc
-    bottom: Any
-    top: Any
-    dtype: type
-
-    def neg(self, x: np.ndarray) -> np.ndarray:
-        return ~x if self.dtype is bool else -x
-
-    def full(self, shape: tuple[int, ...], value: Any) -> np.ndarray:
-        return np.full(shape, value, dtype=self.dtype)
-
-
-BOOL = _Lattice("bool", np.logical_or, np.logical_and, False, True, bool)
-REAL = _Lattice("real", np.maximum, np.minimum, -np.inf, np.inf, float)
-
-
-# ----------------------------------------------------------------- intervals
-
-
-def offsets(interval: A.Interval, dt: float) -> tuple[int, float]:
-    """Sample offsets ``(lo, hi)`` of ``interval``: ``j`` is in it iff ``lo <= j <= hi``.
-
-    ``hi`` is ``inf`` for an unbounded interval; ``lo > hi`` means no sample
-    offset falls in the interval.
-
-    >>> offsets(A.Interval(1, 2, lo_closed=False), 0.5)
-    (3, 4)
-    >>> offsets(A.Interval(0, 1, hi_closed=False), 0.5)
-    (0, 1)
-    >>> offsets(A.Interval(0.3, 0.6), 0.1)
-    (3, 6)
-    >>> offsets(A.Interval(0.1, 0.2, False, False), 0.5)
-    (1, 0)
-    >>> offsets(A.UNBOUNDED, 0.03)
-    (0, inf)
-    """
-    lo_tol = TIME_TOL * max(1.0, abs(interval.lo))
-    if interval.lo_closed:
-        lo = math.ceil((interval.lo - lo_tol) / dt)
-    else:
-        lo = math.floor((interval.lo + lo_tol) / dt) + 1
-    lo = max(lo, 0)
-    if math.isinf(interval.hi):
-        return lo, math.inf
-    hi_tol = TIME_TOL * max(1.0, abs(interval.hi))
-    if interval.hi_closed:
-        x = (interval.hi + hi_tol) / dt
-        if not math.isfinite(x):
-            return lo, math.inf
-        hi = math.floor(x)
-    else:
-        x = (interval.hi - hi_tol) / dt
-        if not math.isfinite(x):
-            return lo, math.inf
-        hi = math.ceil(x) - 1
-    return lo, hi
-
-
-# ----------------------------------------------------------------- kernels
-
-
-def _shift(x: np.ndarray, j: int, fill: Any) -> np.ndarray:
-    """``y[:, k] = x[:, k + j]``, ``fill`` past the end."""
-    if j == 0:
-        return x
-    R, L = x.shape
-    out = np.full((R, L), fill, dtype=x.dtype)
-    if j < L:
-        out[:, : L - j] = x[:, j:]
-    return out
-
-
-def _window(x: np.ndarray, lo: int, hi: float, op: np.ufunc, ident: Any) -> np.ndarray:
-    """``y[:, k] = op(x[:, k+lo .. min(k+hi, N)])``, ``ident`` where the window is empty.
-
-    van Herk/Gil-Werman: blocks as long as the window, a prefix and a suffix
-    scan inside each block, and one ``op`` per output sample; linear in the
-    trace length whatever the window.
-
-    >>> x = np.array([[3.0, 1.0, 4.0, 1.0, 5.0, 9.0, 2.0]])
-    >>> _window(x, 1, 3, np.maximum, -np.inf)
-    array([[  4.,   5.,   9.,   9.,   9.,   2., -inf]])
-    """
-    R, L = x.shape
-    out = np.full((R, L), ident, dtype=x.dtype)
-    if lo > L - 1 or hi < lo:
-        return out
-    hi_i = int(min(hi, L - 1))
-    w = hi_i - lo + 1
-    z = x[:, lo:]
-    n = z.shape[1]
-    if w >= n:  # every window reaches the end of the trace: a suffix scan
-        out[:, :n] = op.accumulate(z[:, ::-1], axis=1)[:, ::-1]
-        return out
-    if w == 1:
-        out[:, :n] = z
-        return out
-    nb = -(-(n + w - 1) // w)
-    padded = np.full((R, nb * w), ident, dtype=x.dtype)
-    padded[:, :n] = z
-    blocks = padded.reshape(R, nb, w)
-    prefix = op.accumulate(blocks, axis=2).reshape(R, nb * w)
-    suffix = op.accumulate(blocks[:, :, ::-1], axis=2)[:, :, ::-1].reshape(R, nb * w)
-    out[:, :n] = op(suffix[:, :n], prefix[:, w - 1 : w - 1 + n])
-    return out
-
-
-_SMALL = 64
-
-
-def _until_unbounded(phi: np.ndarray, psi: np.ndarray, lat: _Lattice) -> np.ndarray:
-    """``U[k] = join_j meet(psi[k+j], meet(phi[k .. k+j-1]))``: untimed strong until.
-
-    It is the backward recurrence ``U[k] = join(psi[k], meet(phi[k], U[k+1]))``,
-    ``U[N+1] = bottom``. The trace is cut into about sqrt(L) blocks; the
-    recurrence runs inside all blocks at once, then across the block starts
-    (the same problem, solved recursively), then one fix-up pass. Linear work.
-
-    >>> phi = np.array([[True, True, False, True, True]])
-    >>> psi = np.array([[False, False, True, False, False]])
-    >>> _until_unbounded(phi, psi, BOOL)
-    array([[ True,  True,  True, False, False]])
-    """
-    R, L = phi.shape
-    if L <= _SMALL:
-        out = np.empty((R, L), dtype=lat.dtype)
-        cur = lat.full((R,), lat.bottom)
-        for k in range(L - 1, -1, -1):
-            cur = lat.join(psi[:, k], lat.meet(phi[:, k], cur))
-            out[:, k] = cur
-        return out
-    B = math.isqrt(L - 1) + 1
-    nb = -(-L // B)
-    pad = nb * B - L
-    if pad:
-        phi = np.concatenate([phi, lat.full((R, pad), lat.top)], axis=1)
-        psi = np.concatenate([psi, lat.full((R, pad), lat.bottom)], axis=1)
-    # layout (B, R, nb): offset inside the block first, so each step is contiguous
-    ph = np.ascontiguousarray(phi.reshape(R, nb, B).transpose(2, 0, 1))
-    ps = np.ascontiguousarray(psi.reshape(R, nb, B).transpose(2, 0, 1))
-    inner = np.empty_like(ps)
-    cur = lat.full((R, nb), lat.bottom)
-    for i in range(B - 1, -1, -1):
-        cur = lat.join(ps[i], lat.meet(ph[i], cur))
-        inner[i] = cur
-    phi_suffix = lat.meet.accumulate(ph[::-1], axis=0)[::-1]
-    # U at the start of each block, then at the start of the next block
-    starts = _until_unbounded(phi_suffix[0], inner[0], lat)
-    after = _shift(starts, 1, lat.bottom)
-    U = lat.join(inner, lat.meet(phi_suffix, after[None, :, :]))
-    return U.transpose(1, 2, 0).reshape(R, nb * B)[:, :L]
-
-
-def _until(phi: np.ndarray, psi: np.ndarray, lo: int, hi: float, lat: _Lattice) -> np.ndarray:
-    """Strong ``phi U_[lo,hi] psi`` in sample offsets.
-
-    ``U_[lo,hi](k) = meet(G_[0,lo-1] phi (k), (F_[0,hi-lo] psi & phi U psi)(k + lo))``;
-    the second part holds because ``phi U_[0,c] psi = F_[0,c] psi & phi U psi``
-    on discrete time (the first witness of ``psi`` inside the window is one).
-    """
-    R, L = phi.shape
-    if hi < lo or lo > L - 1:
-        return lat.full((R, L), lat.bottom)
-    core = _until_unbounded(phi, psi, lat)
-    if hi - lo < L - 1:
-        core = lat.meet(core, _window(psi, 0, hi - lo, lat.join, lat.bottom))
-    out = _shift(core, lo, lat.bottom)
-    if lo > 0:
-        out = lat.meet(out, _window(phi, 0, lo - 1, lat.meet, lat.top))
-    return out
 
 
 # ----------------------------------------------------------------- predicates
@@ -341,7 +158,7 @@ class _Eval:
                 self._atoms[name] = _pred(self.spec.prop(name).pred, self.env, (self.R, self.L))
         return self._atoms[name]
 
-    def sig(self, f: A.Formula, lat: _Lattice) -> np.ndarray:
+    def sig(self, f: A.Formula, lat: Lattice) -> np.ndarray:
         key = (lat.name, f)
         out = self._cache.get(key)
         if out is None:
@@ -362,76 +179,76 @@ class _Eval:
 
 
 @singledispatch
-def _signal(f: A.Formula, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _signal(f: A.Formula, ev: _Eval, lat: Lattice) -> np.ndarray:
     """The ``(R, N+1)`` signal of ``f`` over ``lat`` (truth or robustness)."""
     raise CompileError(f"cannot monitor formula node {type(f).__name__}")
 
 
 @_signal.register
-def _(f: A.Const, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Const, ev: _Eval, lat: Lattice) -> np.ndarray:
     return lat.full((ev.R, ev.L), lat.top if f.value else lat.bottom)
 
 
 @_signal.register
-def _(f: A.Atom, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Atom, ev: _Eval, lat: Lattice) -> np.ndarray:
     truth, rob = ev.atom(f.name)
     return truth if lat is BOOL else rob
 
 
 @_signal.register
-def _(f: A.Not, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Not, ev: _Eval, lat: Lattice) -> np.ndarray:
     return lat.neg(ev.sig(f.child, lat))
 
 
 @_signal.register
-def _(f: A.Weighted, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Weighted, ev: _Eval, lat: Lattice) -> np.ndarray:
     return ev.sig(f.child, lat)
 
 
 @_signal.register
-def _(f: A.And, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.And, ev: _Eval, lat: Lattice) -> np.ndarray:
     return lat.meet(ev.sig(f.left, lat), ev.sig(f.right, lat))
 
 
 @_signal.register
-def _(f: A.Or, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Or, ev: _Eval, lat: Lattice) -> np.ndarray:
     return lat.join(ev.sig(f.left, lat), ev.sig(f.right, lat))
 
 
 @_signal.register
-def _(f: A.Implies, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Implies, ev: _Eval, lat: Lattice) -> np.ndarray:
     return lat.join(lat.neg(ev.sig(f.left, lat)), ev.sig(f.right, lat))
 
 
 @_signal.register
-def _(f: A.Iff, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Iff, ev: _Eval, lat: Lattice) -> np.ndarray:
     a, b = ev.sig(f.left, lat), ev.sig(f.right, lat)
     return lat.meet(lat.join(lat.neg(a), b), lat.join(a, lat.neg(b)))
 
 
 @_signal.register
-def _(f: A.Eventually, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Eventually, ev: _Eval, lat: Lattice) -> np.ndarray:
     lo, hi = ev.offsets(f.interval)
-    return _window(ev.sig(f.child, lat), lo, hi, lat.join, lat.bottom)
+    return window(ev.sig(f.child, lat), lo, hi, lat.join, lat.bottom)
 
 
 @_signal.register
-def _(f: A.Globally, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Globally, ev: _Eval, lat: Lattice) -> np.ndarray:
     lo, hi = ev.offsets(f.interval)
-    return _window(ev.sig(f.child, lat), lo, hi, lat.meet, lat.top)
+    return window(ev.sig(f.child, lat), lo, hi, lat.meet, lat.top)
 
 
 @_signal.register
-def _(f: A.Until, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Until, ev: _Eval, lat: Lattice) -> np.ndarray:
     lo, hi = ev.offsets(f.interval)
-    return _until(ev.sig(f.left, lat), ev.sig(f.right, lat), lo, hi, lat)
+    return until(ev.sig(f.left, lat), ev.sig(f.right, lat), lo, hi, lat)
 
 
 @_signal.register
-def _(f: A.Release, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.Release, ev: _Eval, lat: Lattice) -> np.ndarray:
     lo, hi = ev.offsets(f.interval)
     a, b = lat.neg(ev.sig(f.left, lat)), lat.neg(ev.sig(f.right, lat))
-    return lat.neg(_until(a, b, lo, hi, lat))
+    return lat.neg(until(a, b, lo, hi, lat))
 
 
 def _upto(interval: A.Interval) -> A.Interval:
@@ -440,11 +257,11 @@ def _upto(interval: A.Interval) -> A.Interval:
 
 
 @_signal.register
-def _(f: A.WeakUntil, ev: _Eval, lat: _Lattice) -> np.ndarray:
+def _(f: A.WeakUntil, ev: _Eval, lat: Lattice) -> np.ndarray:
     lo, hi = ev.offsets(f.interval)
     a, b = ev.sig(f.left, lat), ev.sig(f.right, lat)
     glo, ghi = ev.offsets(_upto(f.interval))
-    return lat.join(_until(a, b, lo, hi, lat), _window(a, glo, ghi, lat.meet, lat.top))
+    return lat.join(until(a, b, lo, hi, lat), window(a, glo, ghi, lat.meet, lat.top))
 
 
 # ----------------------------------------------------------------- explanations
@@ -531,8 +348,8 @@ def _settle_window(f: A.Eventually | A.Globally, decisive: bool, ev: _Eval) -> n
     decisive sample of the window, else when every sample of it is settled."""
     lo, hi = ev.offsets(f.interval)
     s, v = ev.settle(f.child), ev.sig(f.child, BOOL)
-    hit = _window(np.where(v == decisive, s, _INF), lo, hi, np.minimum, _INF)
-    every = _window(s, lo, hi, np.maximum, -_INF)
+    hit = window(np.where(v == decisive, s, _INF), lo, hi, np.minimum, _INF)
+    every = window(s, lo, hi, np.maximum, -_INF)
     out = np.where(ev.sig(f, BOOL) == decisive, hit, every)
     return _settled(out, ev)
 
@@ -553,9 +370,9 @@ def _(f: A.Until, ev: _Eval) -> np.ndarray:
     sl, sr = ev.settle(f.left), ev.settle(f.right)
     vl, vr = ev.sig(f.left, BOOL), ev.sig(f.right, BOOL)
     # true: the earliest witness j with right settled true at k+j and left settled true before
-    true_at = -_until(-np.where(vl, sl, _INF), -np.where(vr, sr, _INF), lo, hi, REAL)
+    true_at = -until(-np.where(vl, sl, _INF), -np.where(vr, sr, _INF), lo, hi, REAL)
     # false: every j of the window is refuted, by right settled false at k+j or left before it
-    false_at = _until(np.where(vl, _INF, sl), np.where(vr, _INF, sr), lo, hi, REAL)
+    false_at = until(np.where(vl, _INF, sl), np.where(vr, _INF, sr), lo, hi, REAL)
     return _settled(np.where(ev.sig(f, BOOL), true_at, false_at), ev)
 
 
