@@ -152,3 +152,29 @@ def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
     res = runner.invoke(simulate, ["--policy", str(rise), "--policy", str(over)])
     assert res.exit_code == 2 and res.output.strip() == (
         "--spec: error: name the combined spec to run several HyRL policies on")
+
+
+def test_train_parses_the_spec_once_fresh_and_resumed(spec_dir, tmp_path, monkeypatch):
+    """``mitlc train`` on a require spec reads it once, also on --resume (the HyRL entry
+    point and the checkpoint loader take the parsed spec instead of the text again)."""
+    import mitlc.spec.parse as parse_mod
+    from mitlc.cli.main import main
+
+    calls: list[str] = []
+    real = parse_mod.parse_spec
+
+    def counted(*a, **k):  # load_spec reads the file and calls this
+        calls.append(str(k.get("path") or (a[1] if len(a) > 1 else "")))
+        return real(*a, **k)
+
+    monkeypatch.setattr(parse_mod, "parse_spec", counted)
+    spec = str(spec_dir / "mass_damper" / "overshoot.mitl")
+    out = tmp_path / "o"
+    args = ["train", "--plant", "mass-damper", "--spec", spec, "--runs", "1", "--trials", "2", "-q", "--no-plots"]
+    res = CliRunner().invoke(main, [*args, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert len(calls) == 1, calls
+    calls.clear()
+    res = CliRunner().invoke(main, ["train", "--resume", str(out), "--trials", "3", "-q", "--no-plots"])
+    assert res.exit_code == 0, res.output
+    assert len(calls) == 1, calls

@@ -32,6 +32,7 @@ import numpy as np
 
 from mitlc.cli.common import atomic_write, handle_errors
 from mitlc.errors import InputError, TrainingError
+from mitlc.spec.model import Spec
 
 __all__ = [
     "train_hybrid_cli",
@@ -50,9 +51,8 @@ SMALL_STEP = 0.1
 result holds for |q0| >= 0.1 only (section 3-3-1)."""
 
 
-def _load_spec(spec: Any):
+def _load_spec(spec: Any) -> Spec:
     from mitlc.spec.parse import load_spec
-    from mitlc.spec.model import Spec
 
     if isinstance(spec, Spec):
         return spec
@@ -214,7 +214,7 @@ def train_hybrid_cli(
         ckpt = Path(resume) / PARAMS
         if not ckpt.is_file():
             raise InputError(f"no checkpoint {PARAMS} in {resume}", file=str(resume))
-        learner = load_learner(ckpt)
+        learner = load_learner(ckpt, spec if isinstance(spec, Spec) else None)
         s = learner.spec
     else:
         s = _load_spec(spec)

@@ -671,9 +671,12 @@ _LEGACY_SETTINGS = {"critic_init": "zero", "qdot_grid": None, "noise_tau": 0.0, 
 """What a checkpoint that does not name these settings was trained with."""
 
 
-def load_learner(path: str | Path) -> HybridLearner:
+def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
     """Rebuild a learner from a checkpoint written by :meth:`HybridLearner.save`
-    (the spec's text travels inside it)."""
+    (the spec's text travels inside it).
+
+    ``spec``: the checkpoint's spec when the caller has parsed it already (``mitlc train
+    --resume`` has); used only if its text is the checkpoint's, else the text is parsed."""
     from mitlc.spec.parse import parse_spec
 
     try:
@@ -684,7 +687,8 @@ def load_learner(path: str | Path) -> HybridLearner:
         raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
     if meta.get("kind") != "hyrl":
         raise InputError("not a HyRL checkpoint", file=str(path))
-    spec = parse_spec(meta["spec_source"], meta["spec_path"] or None)
+    if spec is None or spec.source != meta["spec_source"]:
+        spec = parse_spec(meta["spec_source"], meta["spec_path"] or None)
     # checkpoints written before these settings existed were trained without them
     saved = {**_LEGACY_SETTINGS, **meta["settings"]}
     learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]),
