@@ -57,7 +57,7 @@ VOLATILE = {"wall_s"}
 
 def run_case(args: list[str]) -> dict[str, object]:
     """Run one case in-process from the repository root; what it produced."""
-    from mitlc.cli.main import main
+    from mitlc.cli import main
 
     import os
 

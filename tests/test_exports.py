@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from mitlc.cli.main import main
+from mitlc.cli import main
 from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.petri.export import to_dict, to_json, to_networkx, to_pnml
 from mitlc.spec.parse import load_spec, parse_spec

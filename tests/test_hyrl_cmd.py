@@ -158,7 +158,7 @@ def test_train_parses_the_spec_once_fresh_and_resumed(spec_dir, tmp_path, monkey
     """``mitlc train`` on a require spec reads it once, also on --resume (the HyRL entry
     point and the checkpoint loader take the parsed spec instead of the text again)."""
     import mitlc.spec.parse as parse_mod
-    from mitlc.cli.main import main
+    from mitlc.cli import main
 
     calls: list[str] = []
     real = parse_mod.parse_spec

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mitlc.spec import ast as A
-from mitlc.cli.main import main
+from mitlc.cli import main
 from mitlc.errors import CompileError, InputError, SpecError
 from mitlc.monitor.offline import MonitorResult, monitor, offsets, signals, state_columns
 from mitlc.spec.parse import load_spec, parse_formula, parse_spec

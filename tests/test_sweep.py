@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from mitlc.cli.main import main
+from mitlc.cli import main
 from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.errors import InputError
 from mitlc.monitor.offline import monitor

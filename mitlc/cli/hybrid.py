@@ -386,8 +386,8 @@ def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path:
                 handover_trials: int = 0, handover_sigma: float | None = None) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
     from mitlc.learn.hyrl import HANDOVER_SIGMA, brake_bound, compose, train_handover
-    from mitlc.spec.parse import load_spec
     from mitlc.learn.plots import png_bytes
+    from mitlc.spec.parse import load_spec
 
     s = load_spec(spec)
     learners = _load_learners(policy_dirs)

@@ -83,9 +83,17 @@ def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_r
     """Train SPEC over a grid of trainer settings, weights and options, several seeds each."""
     from tqdm import tqdm
 
-    from mitlc.spec.parse import load_spec
     from mitlc.learn.plots import png_bytes
-    from mitlc.sweep import LocalBackend, RayBackend, format_table, heatmap_figure, plan_sweep, run_sweep, summarize
+    from mitlc.spec.parse import load_spec
+    from mitlc.sweep import (
+        LocalBackend,
+        RayBackend,
+        format_table,
+        heatmap_figure,
+        plan_sweep,
+        run_sweep,
+        summarize,
+    )
 
     spec = load_spec(spec_path)
     for w in spec.warnings:

@@ -188,9 +188,9 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
     """Train SACPN controllers on a spec and judge them with the monitor."""
     from tqdm import tqdm
 
-    from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
+    from mitlc.petri.compile import CompileOptions, compile_spec
 
     meta = None
     if resume_dir is not None:
@@ -217,8 +217,8 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
     for w in spec.warnings:
         click.echo(w, err=True)
     if spec.formula is None and spec.requirements:  # classical criteria: HyRL (docs/hyrl.md)
-        from mitlc.learn.hyrl import HyrlSettings
         from mitlc.cli.hybrid import train_hybrid_cli
+        from mitlc.learn.hyrl import HyrlSettings
 
         overrides = {k: v for k, v in (("sigma", sigma), ("saturation", saturation)) if v is not None}
         overrides.update(parse_assignments(HyrlSettings, assignments))
@@ -291,8 +291,8 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
 
     HyRL policies (classical criteria) are judged by the checker; several of them run
     composed on --spec's combined automaton (thesis section 3-3-3)."""
-    from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
+    from mitlc.petri.compile import CompileOptions, compile_spec
 
     policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
