@@ -6,6 +6,12 @@ expression over token counts now and one step ago (Table 4-2,
 :mod:`mitlc.petri.reward`); exports to JSON, text, PNML and networkx
 (:mod:`mitlc.petri.export`) and Graphviz drawings (:mod:`mitlc.petri.render`).
 
+The builder of :mod:`~mitlc.petri.compile` takes its sub-nets from one module per kind:
+:mod:`~mitlc.petri.regions` (state), :mod:`~mitlc.petri.timeline` (the trial clock),
+:mod:`~mitlc.petri.violations` (violation watches and the penalty's bounds), as
+:class:`~mitlc.petri.parts.Part` drafts; :mod:`~mitlc.petri.reading` holds the
+formula-level helpers.
+
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`.
 """

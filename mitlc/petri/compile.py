@@ -3,15 +3,18 @@
 Steps (docs/semantics.md explains each):
 
 1. :func:`~mitlc.spec.passes.normal_form`: derived operators to primitives, negation to atoms.
-2. :func:`reward_reading`: release ``a R_I b`` becomes ``(b U_I (a & b)) | G_I b``.
-3. State-related sub-nets: the propositions are grouped so that every group's
-   regions are provably disjoint (interval analysis); each group is one region
-   net with a place per proposition plus "none" (for a group of one: ``p_a``,
-   ``p_not_a``) and a transition between every two places.
-4. Timing-related sub-nets: one *timeline* over the trial clock for all
-   interval ends, a pending/done net for ``F`` of a state formula, a two-phase
-   net for untimed ``U``, and one shared cycle for a conjunction of ``G F``.
-5. The reward of Table 4-2, composed over the formula.
+2. :func:`~mitlc.petri.reading.reward_reading`: release ``a R_I b`` becomes
+   ``(b U_I (a & b)) | G_I b``.
+3. State-related sub-nets (:mod:`mitlc.petri.regions`): the propositions are grouped
+   so that every group's regions are provably disjoint (interval analysis); each
+   group is one region net with a place per proposition plus "none" (for a group of
+   one: ``p_a``, ``p_not_a``) and a transition between every two places.
+4. Timing-related sub-nets: one *timeline* over the trial clock for all interval
+   ends (:mod:`mitlc.petri.timeline`), and here, per operator, a pending/done net for
+   ``F`` of a state formula, a two-phase net for untimed ``U``, and one shared cycle
+   for a conjunction of ``G F``; violation sub-nets (:mod:`mitlc.petri.violations`).
+5. The reward of Table 4-2, composed over the formula (:class:`_Builder`, one method
+   per operator), and the sub-nets assembled into one :class:`~mitlc.petri.net.Net`.
 
 >>> from mitlc.spec.parse import parse_spec
 >>> rs = compile_spec(parse_spec('''
@@ -28,17 +31,33 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
-from mitlc.spec import ast as A
-from mitlc.spec import predicates as P
-from mitlc.petri import reward as R
 from mitlc.errors import CompileError
-from mitlc.petri.net import Guard, GuardTerm, Net, Place, SubNet, Transition, eval_state
-from mitlc.spec.passes import is_state_formula, normal_form, push_negations
+from mitlc.petri import reward as R
+from mitlc.petri.net import Guard, GuardTerm, Net, Place, SubNet, Transition
+from mitlc.petri.parts import Part, tokens
+from mitlc.petri.reading import (
+    conjoin,
+    flatten,
+    negate_state,
+    peel_weights,
+    recurrence,
+    reward_reading,
+    strip_weights,
+    trigger,
+)
+from mitlc.petri.regions import region_net, state_groups
+from mitlc.petri.timeline import formula_thresholds, lower, timeline_net, upper
+from mitlc.petri.violations import (
+    ViolationWatches,
+    bounds_all_steps,
+    bounds_without_violation,
+)
+from mitlc.spec import ast as A
 from mitlc.spec.model import Spec
+from mitlc.spec.passes import is_state_formula, normal_form
 
 __all__ = ["CompileOptions", "RewardSystem", "compile_spec", "reward_reading", "state_groups"]
 
@@ -86,223 +105,17 @@ class RewardSystem:
         return tuple(a for g in self.groups for a in g)
 
 
-# ------------------------------------------------------------------ passes
-
-
-def reward_reading(f: A.Formula) -> A.Formula:
-    """Rewrite release into until and always, the operators the net implements.
-
-    ``a R_I b`` becomes ``(b U_I (a & b)) | G_I b``, exact for the untimed
-    operator (``a R b = b W (a & b)``) and the net's reading for intervals.
-
-    >>> from mitlc.spec.parse import parse_formula
-    >>> print(reward_reading(parse_formula("a R b")))
-    b U (a & b) | G b
-    """
-    if isinstance(f, A.Release):
-        left, right = reward_reading(f.left), reward_reading(f.right)
-        return A.Or(A.Until(right, A.And(left, right), f.interval), A.Globally(right, f.interval), pos=f.pos)
-    if not f.children:
-        return f
-    kids = [reward_reading(c) for c in f.children]
-    if isinstance(f, (A.And, A.Or)):
-        return f.__class__(kids[0], kids[1], pos=f.pos)
-    if isinstance(f, A.Until):
-        return A.Until(kids[0], kids[1], f.interval, pos=f.pos)
-    if isinstance(f, A.Not):
-        return A.Not(kids[0], pos=f.pos)
-    if isinstance(f, A.Weighted):
-        return A.Weighted(f.weight, kids[0], pos=f.pos)
-    if isinstance(f, (A.Eventually, A.Globally)):
-        return f.__class__(kids[0], f.interval, pos=f.pos)
-    raise CompileError(f"cannot compile {type(f).__name__} (run normal_form first)")
-
-
-def _strip(f: A.Formula) -> A.Formula:
-    """Drop weights (they do not change truth)."""
-    if isinstance(f, A.Weighted):
-        return _strip(f.child)
-    if isinstance(f, A.Not):
-        return A.Not(_strip(f.child))
-    if isinstance(f, (A.And, A.Or)):
-        return f.__class__(_strip(f.left), _strip(f.right))
-    return f
-
-
-def _peel(f: A.Formula) -> tuple[float, A.Formula]:
-    w = 1.0
-    while isinstance(f, A.Weighted):
-        w *= f.weight
-        f = f.child
-    return w, f
-
-
-def _flatten(f: A.Formula, cls: type) -> list[A.Formula]:
-    if isinstance(f, cls):
-        return _flatten(f.left, cls) + _flatten(f.right, cls)  # type: ignore[attr-defined]
-    return [f]
-
-
-def _recurrence(f: A.Formula) -> tuple[float, A.Formula] | None:
-    """``w * G F phi`` with both untimed and phi a state formula -> (w, phi)."""
-    w1, g = _peel(f)
-    if not (isinstance(g, A.Globally) and g.interval.is_unbounded):
-        return None
-    w2, ev = _peel(g.child)
-    if not (isinstance(ev, A.Eventually) and ev.interval.is_unbounded and is_state_formula(ev.child)):
-        return None
-    return w1 * w2, ev.child
-
-
-def _conj(a: A.Formula, b: A.Formula) -> A.Formula:
-    if a == A.Const(True):
-        return b
-    if b == A.Const(True):
-        return a
-    return A.And(a, b)
-
-
-def _disj(a: A.Formula, b: A.Formula) -> A.Formula:
-    if A.Const(True) in (a, b):
-        return A.Const(True)
-    return A.Or(a, b)
-
-
-def trigger(f: A.Formula) -> A.Formula:
-    """A state condition that must hold at time t for ``f`` to hold at t (true if none).
-
-    It guards the switch of an untimed until from its left to its right phase.
-    """
-    w, f = _peel(f)
-    if is_state_formula(f):
-        return _strip(f)
-    if isinstance(f, A.And):
-        return _conj(trigger(f.left), trigger(f.right))
-    if isinstance(f, A.Or):
-        return _disj(trigger(f.left), trigger(f.right))
-    if isinstance(f, A.Globally):
-        return trigger(f.child) if f.interval.lo == 0 and f.interval.lo_closed else A.Const(True)
-    if isinstance(f, A.Until):
-        if f.interval.lo == 0 and f.interval.lo_closed:
-            return _disj(trigger(f.left), trigger(f.right))
-        return trigger(f.left)
-    return A.Const(True)
-
-
-# ------------------------------------------------------------------ state groups
-
-
-def state_groups(spec: Spec, names: Sequence[str]) -> tuple[tuple[str, ...], ...]:
-    """Group propositions so that the regions within a group are provably disjoint.
-
-    Greedy, in the order given: each proposition joins the first group whose
-    members it is disjoint from, else starts a new group.
-    """
-    doms = spec.domains()
-    groups: list[list[str]] = []
-    for name in names:
-        pred = spec.prop(name).pred
-        for g in groups:
-            if all(P.provably_disjoint(pred, spec.prop(m).pred, doms) for m in g):
-                g.append(name)
-                break
-        else:
-            groups.append([name])
-    return tuple(tuple(g) for g in groups)
-
-
-def _covers(spec: Spec, members: Sequence[str]) -> bool:
-    """True if the members' regions provably cover the whole state space."""
-    preds = [spec.prop(m).pred for m in members]
-    union = preds[0]
-    for p in preds[1:]:
-        union = P.POr(union, p)
-    return P.provably_empty(P.PNot(union), spec.domains())
-
-
-# ------------------------------------------------------------------ threshold timeline
-
-
-@dataclass(frozen=True, order=True)
-class _Threshold:
-    """The clock has passed ``value`` (``tau > value`` if strict, else ``tau >= value``)."""
-
-    value: float
-    strict: bool
-
-    def clock(self) -> A.Interval:
-        return A.Interval(self.value, math.inf, lo_closed=not self.strict)
-
-
-def _lower(i: A.Interval) -> _Threshold | None:
-    if i.lo == 0 and i.lo_closed:
-        return None
-    return _Threshold(i.lo, not i.lo_closed)
-
-
-def _upper(i: A.Interval) -> _Threshold | None:
-    if math.isinf(i.hi):
-        return None
-    return _Threshold(i.hi, i.hi_closed)
-
-
-def _thresholds(f: A.Formula) -> list[_Threshold]:
-    out: set[_Threshold] = set()
-    for node in A.walk(f):
-        if isinstance(node, (A.Eventually, A.Globally)) and not node.interval.is_unbounded:
-            out.update(t for t in (_lower(node.interval), _upper(node.interval)) if t is not None)
-        elif isinstance(node, A.Until) and _lower(node.interval) is not None:
-            out.add(_lower(node.interval))  # type: ignore[arg-type]
-    return sorted(out)
-
-
-def _segment_name(lo: _Threshold | None, hi: _Threshold | None) -> str:
-    left = "" if lo is None else f"{A.fmt_number(lo.value)}{'<' if lo.strict else '<='}"
-    if hi is None:
-        return f"p_tau{'>' if lo and lo.strict else '>='}{A.fmt_number(lo.value)}" if lo else "p_tau"
-    right = f"{'<=' if hi.strict else '<'}{A.fmt_number(hi.value)}"
-    return f"p_{left}tau{right}"
-
-
 # ------------------------------------------------------------------ builder
 
 
-@dataclass
-class _Sub:
-    name: str
-    kind: str
-    role: str
-    places: list[tuple[str, str]]  # (name, label)
-    arcs: list[tuple[int, int | tuple[int, ...], Guard]]  # local src, local dst(s), guard
-    initial: int
-    formula: str = ""
-    counters: tuple[int, ...] = ()  # local indices of counting places (outside the one-token set)
+class _Builder(ViolationWatches):
+    """Builds the sub-nets of a formula and its reward, one method per operator (Table 4-2)."""
 
-
-def _negate_state(f: A.Formula) -> A.Formula:
-    return push_negations(A.Not(f))
-
-
-def _complement_clock(i: A.Interval) -> list[A.Interval]:
-    """The clock outside ``i``: up to two intervals."""
-    out = []
-    if i.lo > 0 or not i.lo_closed:
-        out.append(A.Interval(0.0, i.lo, True, not i.lo_closed))
-    if not math.isinf(i.hi):
-        out.append(A.Interval(i.hi, math.inf, not i.hi_closed))
-    return out
-
-
-def _tokens(names: Sequence[str], prev: bool = False) -> R.Tokens:
-    return R.Tokens((), tuple(names), prev)
-
-
-class _Builder:
     def __init__(self, spec: Spec, options: CompileOptions, formula: A.Formula) -> None:
         self.spec = spec
         self.options = options
-        self.timing: list[_Sub] = []
-        self.violation_nets: list[_Sub] = []
+        self.timing: list[Part] = []
+        self.violation_nets: list[Part] = []
         self.penalties: list[str] = []  # places whose new tokens are penalised
         self.end = _last_sample(spec)
         self.cache: dict[object, list[str]] = {}  # one timing sub-net per distinct subformula
@@ -312,7 +125,7 @@ class _Builder:
         for n in names:
             spec.prop(n)  # undefined propositions were caught by the parser
         self.groups = state_groups(spec, names)
-        self.state: list[_Sub] = [self._region_net(g) for g in self.groups]
+        self.state: list[Part] = [region_net(spec, g, self._unique) for g in self.groups]
         # atom -> (places where it holds, places where it does not)
         self.where: dict[str, tuple[list[str], list[str]]] = {}
         for g, sub in zip(self.groups, self.state):
@@ -320,10 +133,12 @@ class _Builder:
             for a in g:
                 pos = [f"p_{a}"]
                 self.where[a] = (pos, [n for n in all_names if n not in pos])
-        self.thresholds = _thresholds(formula)
+        self.thresholds = formula_thresholds(formula)
         self.segments: list[str] = []
         if self.thresholds:
-            self._timeline()
+            line = timeline_net(self.thresholds, self._unique)
+            self.segments = [n for n, _ in line.places]
+            self.timing.append(line)
 
     # -- naming
     def _unique(self, name: str) -> str:
@@ -335,7 +150,7 @@ class _Builder:
         return name
 
     def _label(self, f: A.Formula, prefix: str) -> str:
-        _, core = _peel(f)
+        _, core = peel_weights(f)
         if isinstance(core, A.Atom):
             return core.name
         if isinstance(core, A.Not) and isinstance(core.child, A.Atom):
@@ -343,67 +158,9 @@ class _Builder:
         self.counter += 1
         return f"{prefix}{self.counter}"
 
-    # -- sub-nets
-    def _region_net(self, group: tuple[str, ...]) -> _Sub:
-        places = [(self._unique(f"p_{a}"), a) for a in group]
-        regions: list[A.Formula] = [A.Atom(a) for a in group]
-        if not _covers(self.spec, group):
-            if len(group) == 1:
-                places.append((self._unique(f"p_not_{group[0]}"), f"!{group[0]}"))
-                regions.append(A.Not(A.Atom(group[0])))
-            else:
-                places.append((self._unique("p_none_" + "_".join(group)), "none"))
-                none: A.Formula = A.Not(A.Atom(group[0]))
-                for a in group[1:]:
-                    none = A.And(none, A.Not(A.Atom(a)))
-                regions.append(none)
-        arcs = [
-            (i, j, Guard.state(regions[j]))
-            for i in range(len(places))
-            for j in range(len(places))
-            if i != j
-        ]
-        initial = self._initial_region(group)
-        return _Sub(f"region({', '.join(group)})", "state", "region", places, arcs, initial)
-
-    def _initial_region(self, group: tuple[str, ...]) -> int:
-        point = self._init_point()
-        if point is not None:
-            for i, a in enumerate(group):
-                pred = self.spec.prop(a).pred
-                if all(v.name in point for v in P.variables(pred)) and bool(P.evaluate(pred, point)):
-                    return i
-        return len(group) if not _covers(self.spec, group) else 0
-
-    def _init_point(self) -> dict[str, float] | None:
-        spec = self.spec
-        if not spec.init:
-            return None
-        point = {r.var: 0.5 * (r.lo + r.hi) for r in spec.init}
-        plant = spec.plant
-        if plant is not None:
-            for v in plant.state:
-                point.setdefault(v.name, 0.0)
-                if v.periodic:
-                    point[v.name] = float((point[v.name] + math.pi) % (2 * math.pi) - math.pi)
-        return point
-
-    def _timeline(self) -> None:
-        th = self.thresholds
-        bounds = [None, *th]
-        places = []
-        for i in range(len(th) + 1):
-            lo = bounds[i]
-            hi = th[i] if i < len(th) else None
-            name = self._unique(_segment_name(lo, hi))
-            places.append((name, name[2:]))
-        arcs = [(i, i + 1, Guard.clock(t.clock())) for i, t in enumerate(th)]
-        self.segments = [n for n, _ in places]
-        self.timing.append(_Sub("timeline", "timing", "timeline", places, arcs, 0, "trial clock"))
-
     def _phase(self, interval: A.Interval) -> frozenset[int]:
         n = len(self.segments)
-        lo, hi = _lower(interval), _upper(interval)
+        lo, hi = lower(interval), upper(interval)
         start = 0 if lo is None else self.thresholds.index(lo) + 1
         stop = n if hi is None else self.thresholds.index(hi) + 1
         return frozenset(range(start, stop))
@@ -412,22 +169,22 @@ class _Builder:
         return frozenset(range(len(self.segments)))
 
     def _seg_tokens(self, segs: frozenset[int], prev: bool = False) -> R.Tokens:
-        return _tokens([self.segments[i] for i in sorted(segs)], prev)
+        return tokens([self.segments[i] for i in sorted(segs)], prev)
 
     # -- indicators and rewards of state formulas
     def _h(self, f: A.Formula, prev: bool = True) -> R.RExpr:
         """0/1 indicator that state formula ``f`` holds, read off the marking."""
-        _, f = _peel(f)
+        _, f = peel_weights(f)
         if isinstance(f, A.Const):
             return R.ONE if f.value else R.ZERO
         if isinstance(f, A.Atom):
-            return _tokens(self.where[f.name][0], prev)
+            return tokens(self.where[f.name][0], prev)
         if isinstance(f, A.Not) and isinstance(f.child, A.Atom):
-            return _tokens(self.where[f.child.name][1], prev)
+            return tokens(self.where[f.child.name][1], prev)
         if isinstance(f, A.And):
-            return R.Min(tuple(self._h(c, prev) for c in _flatten(f, A.And)))
+            return R.Min(tuple(self._h(c, prev) for c in flatten(f, A.And)))
         if isinstance(f, A.Or):
-            return R.Max(tuple(self._h(c, prev) for c in _flatten(f, A.Or)))
+            return R.Max(tuple(self._h(c, prev) for c in flatten(f, A.Or)))
         raise CompileError(f"not a state formula: {f}")
 
     # -- rewards
@@ -443,12 +200,12 @@ class _Builder:
             return R.Const(1.0 if f.value else -1.0)
         if isinstance(f, A.Atom):
             pos, neg = self.where[f.name]
-            return R.Sum((_tokens(pos), R.Neg(_tokens(neg))))
+            return R.Sum((tokens(pos), R.Neg(tokens(neg))))
         if isinstance(f, A.Not):
             if not isinstance(f.child, A.Atom):
                 raise CompileError(f"negation of {f.child} left after normal form")
             pos, neg = self.where[f.child.name]
-            return R.Sum((_tokens(neg), R.Neg(_tokens(pos))))
+            return R.Sum((tokens(neg), R.Neg(tokens(pos))))
         if isinstance(f, A.Weighted):
             inner = self.reward(f.child, ctx, under_g, conj)
             if isinstance(inner, R.Gated):
@@ -457,7 +214,7 @@ class _Builder:
         if isinstance(f, A.And):
             return self._and(f, ctx, under_g, conj)
         if isinstance(f, A.Or):
-            return R.Max(tuple(self.reward(c, ctx, under_g) for c in _flatten(f, A.Or)))
+            return R.Max(tuple(self.reward(c, ctx, under_g) for c in flatten(f, A.Or)))
         if isinstance(f, A.Globally):
             return self._globally(f, ctx, under_g, conj)
         if isinstance(f, A.Eventually):
@@ -481,14 +238,14 @@ class _Builder:
         return R.Gated(self._seg_tokens(p, prev), expr)
 
     def _globally(self, f: A.Globally, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
-        rec = _recurrence(f)
+        rec = recurrence(f)
         if rec is not None:  # a lone G F phi: its one-place cycle is trivial and dropped
             w, phi = rec
             return R.scale(w, self._bonus(phi, ctx, True))
         phase = self._phase(f.interval) if self.segments else ctx
         inner_ctx = (phase & ctx) or ctx
         if conj and is_state_formula(f.child) and (phase & ctx or not self.segments):
-            self._watch(f"G_{self._label(f.child, '')}", _negate_state(_strip(f.child)), inner_ctx, str(f),
+            self._watch(f"G_{self._label(f.child, '')}", negate_state(strip_weights(f.child)), inner_ctx, str(f),
                         counted=True)
         return self._gate(phase, ctx, self._bonus(f.child, inner_ctx, True))
 
@@ -505,36 +262,36 @@ class _Builder:
                 and is_state_formula(f.child.child) and self.end is not None:
             # F G phi on a finite trial: phi must hold at the last sample
             end = A.Interval(self.end, math.inf)
-            self._watch(f"FG_{self._label(f.child.child, '')}", _negate_state(_strip(f.child.child)), None,
+            self._watch(f"FG_{self._label(f.child.child, '')}", negate_state(strip_weights(f.child.child)), None,
                         str(f), clock=end)
         if is_state_formula(f.child) and not under_g:
-            key = ("eventually", _strip(f.child), f.interval)
+            key = ("eventually", strip_weights(f.child), f.interval)
             if key not in self.cache:
                 label = self._label(f.child, "F")
                 pending = self._unique(f"p_tau_{label}")
                 done = self._unique(f"p_done_{label}")
-                guard = Guard((GuardTerm(_strip(f.child), f.interval if timed else None),))
+                guard = Guard((GuardTerm(strip_weights(f.child), f.interval if timed else None),))
                 self.timing.append(
-                    _Sub(f"eventually {label}", "timing", "eventually",
+                    Part(f"eventually {label}", "timing", "eventually",
                          [(pending, f"tau,{label}"), (done, f"done,{label}")], [(0, 1, guard)], 0, str(f))
                 )
                 self.cache[key] = [pending, done]
             if conj:
                 self._late(key, f)
-            factors.insert(0, _tokens([self.cache[key][0]], prev=True))
+            factors.insert(0, tokens([self.cache[key][0]], prev=True))
         if not factors:
             return inner  # the thesis's trivial one-place net, dropped
         gate = factors[0] if len(factors) == 1 else R.Prod(tuple(factors))
         return R.Gated(gate, inner)
 
     def _until(self, f: A.Until, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
-        lo = _lower(f.interval)
+        lo = lower(f.interval)
         if lo is not None:  # time-triggered switch on the timeline (the thesis's C-5)
             k = self.thresholds.index(lo) + 1
             before = frozenset(range(k)) & ctx
             after = frozenset(range(k, len(self.segments))) & ctx
             if conj and before and is_state_formula(f.left):
-                self._watch(f"U_{self._label(f.left, '')}", _negate_state(_strip(f.left)), before, str(f),
+                self._watch(f"U_{self._label(f.left, '')}", negate_state(strip_weights(f.left)), before, str(f),
                             counted=True)
             terms: list[R.RExpr] = []
             for phase, side in ((before, f.left), (after, f.right)):
@@ -549,7 +306,7 @@ class _Builder:
                     terms.append(R.Gated(self._seg_tokens(phase), sub))
             return terms[0] if len(terms) == 1 else R.Sum(tuple(terms))
         watch = conj and self.options.violations != "off"
-        left_cond = _strip(f.left) if watch and is_state_formula(f.left) else None
+        left_cond = strip_weights(f.left) if watch and is_state_formula(f.left) else None
         # the net depends on nothing else (the left side only where its failure is watched)
         key = ("until", trigger(f.right), f.interval, left_cond, watch)
         if key not in self.cache:
@@ -569,7 +326,7 @@ class _Builder:
                 arcs.append((0, 1, Guard(tuple(switch))))
                 fail: list[GuardTerm] = []
                 if left_cond is not None and key[1] != A.Const(True):
-                    fail.append(GuardTerm(_conj(_negate_state(left_cond), _negate_state(key[1]))))
+                    fail.append(GuardTerm(conjoin(negate_state(left_cond), negate_state(key[1]))))
                 if deadline is not None:
                     fail.append(deadline)
                 if fail:
@@ -577,13 +334,13 @@ class _Builder:
                     places.append((failed, f"{label},failed"))
                     arcs.append((0, 2, Guard(tuple(fail))))
                     self.penalties.append(failed)
-            self.timing.append(_Sub(f"until {label}", "timing", "until", places, arcs, 0, str(f)))
+            self.timing.append(Part(f"until {label}", "timing", "until", places, arcs, 0, str(f)))
             self.cache[key] = names
         left_place, right_place = self.cache[key][:2]
         return R.Sum(
             (
-                R.Gated(_tokens([left_place]), self.reward(f.left, ctx, under_g)),
-                R.Gated(_tokens([right_place]), self.reward(f.right, ctx, under_g)),
+                R.Gated(tokens([left_place]), self.reward(f.left, ctx, under_g)),
+                R.Gated(tokens([right_place]), self.reward(f.right, ctx, under_g)),
             )
         )
 
@@ -596,93 +353,29 @@ class _Builder:
         )
 
     def _and(self, f: A.And, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
-        parts = _flatten(f, A.And)
-        recurrences = [(i, _recurrence(p)) for i, p in enumerate(parts)]
+        parts = flatten(f, A.And)
+        recurrences = [(i, recurrence(p)) for i, p in enumerate(parts)]
         cyc = [(i, r) for i, r in recurrences if r is not None]
         terms: dict[int, R.RExpr] = {}
         if len(cyc) >= 2:
-            key = ("recurrence",) + tuple(_strip(phi) for _, (_, phi) in cyc)
+            key = ("recurrence",) + tuple(strip_weights(phi) for _, (_, phi) in cyc)
             if key not in self.cache:
                 labels = [self._label(phi, "GF") for _, (_, phi) in cyc]
                 names = [self._unique(f"p_tau_{lab}") for lab in labels]
                 n = len(names)
-                arcs = [(j, (j + 1) % n, Guard.state(_strip(phi))) for j, (_, (_, phi)) in enumerate(cyc)]
+                arcs = [(j, (j + 1) % n, Guard.state(strip_weights(phi))) for j, (_, (_, phi)) in enumerate(cyc)]
                 self.timing.append(
-                    _Sub("recurrence", "timing", "recurrence", [(nm, f"tau,{lab}") for nm, lab in zip(names, labels)],
+                    Part("recurrence", "timing", "recurrence", [(nm, f"tau,{lab}") for nm, lab in zip(names, labels)],
                          arcs, 0, " & ".join(str(parts[i]) for i, _ in cyc))
                 )
                 self.cache[key] = names
             names = self.cache[key]
             for (i, (w, phi)), name in zip(cyc, names):
-                terms[i] = R.Gated(_tokens([name], prev=True), R.scale(w, self._bonus(phi, ctx, True)))
+                terms[i] = R.Gated(tokens([name], prev=True), R.scale(w, self._bonus(phi, ctx, True)))
         for i, p in enumerate(parts):
             if i not in terms:
                 terms[i] = self.reward(p, ctx, under_g, conj)
         return R.Min(tuple(terms[i] for i in range(len(parts))), active=self.options.conjunction == "active")
-
-    # -- violations (docs/semantics.md, section 6)
-    def _segments_clock(self, segs: frozenset[int] | None) -> A.Interval | None:
-        """The clock interval covered by contiguous timeline segments (None: all time)."""
-        if not self.segments or segs is None or len(segs) == len(self.segments):
-            return None
-        first, last = min(segs), max(segs)
-        if first == 0:
-            lo, lo_closed = 0.0, True
-        else:
-            th = self.thresholds[first - 1]
-            lo, lo_closed = th.value, not th.strict
-        if last == len(self.segments) - 1:
-            return A.Interval(lo, math.inf, lo_closed)
-        th = self.thresholds[last]
-        return A.Interval(lo, th.value, lo_closed, th.strict)
-
-    def _watch(self, label: str, bad: A.Formula, segs: frozenset[int] | None, text: str,
-               counted: bool = False, clock: A.Interval | None = None) -> None:
-        """A violation sub-net: it records that ``bad`` held while the part was active."""
-        mode = self.options.violations
-        if mode == "off":
-            return
-        key = ("watch", bad, segs, clock)
-        if key in self.cache:
-            return
-        clock = clock if clock is not None else self._segments_clock(segs)
-        guard = Guard((GuardTerm(bad, clock),))
-        ok = self._unique(f"p_ok_{label}")
-        if mode == "counted" and counted:
-            bad_place, count = self._unique(f"p_bad_{label}"), self._unique(f"p_count_{label}")
-            back = Guard((GuardTerm(_negate_state(bad)),)
-                         + tuple(GuardTerm(clock=c) for c in (_complement_clock(clock) if clock else [])))
-            sub = _Sub(f"violations {label}", "violation", "violation",
-                       [(ok, f"ok,{label}"), (bad_place, f"bad,{label}"), (count, f"count,{label}")],
-                       [(0, (1, 2), guard), (1, 0, back)], 0, text, counters=(2,))
-            self.penalties.append(count)
-        else:
-            viol = self._unique(f"p_violated_{label}")
-            sub = _Sub(f"violations {label}", "violation", "violation",
-                       [(ok, f"ok,{label}"), (viol, f"violated,{label}")], [(0, 1, guard)], 0, text)
-            self.penalties.append(viol)
-        self.cache[key] = [ok]
-        self.violation_nets.append(sub)
-
-    def _late(self, key: tuple, f: A.Eventually) -> None:
-        """Give an eventually net a ``late`` place: the deadline (or the trial) passed before it was met."""
-        if self.options.violations == "off" or ("late",) + key in self.cache:
-            return
-        terms = []
-        if not math.isinf(f.interval.hi) and (self.end is None or f.interval.hi < self.end):
-            terms.append(GuardTerm(clock=A.Interval(f.interval.hi, math.inf, lo_closed=not f.interval.hi_closed)))
-        elif self.end is not None:  # still pending at the last sample (done comes first if met there)
-            terms.append(GuardTerm(clock=A.Interval(self.end, math.inf)))
-        if not terms:
-            return
-        deadline = Guard(tuple(terms))
-        sub = next(s for s in self.timing if s.places and s.places[0][0] == self.cache[key][0])
-        label = sub.places[0][1].split(",", 1)[1]
-        late = self._unique(f"p_late_{label}")
-        sub.places.append((late, f"late,{label}"))
-        sub.arcs.append((0, len(sub.places) - 1, deadline))
-        self.penalties.append(late)
-        self.cache[("late",) + key] = [late]
 
     # -- assembly
     def assemble(self, reward: R.RExpr) -> tuple[Net, R.RExpr]:
@@ -758,16 +451,16 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
     net, resolved = builder.assemble(reward)
     if builder.penalties:
         # c: more than any step can earn above a violation-free step
-        lo_free, _ = _bounds_without_violation(builder, net, resolved)
-        _, hi = _bounds_all_steps(net, resolved)
+        lo_free, _ = bounds_without_violation(builder, net, resolved)
+        _, hi = bounds_all_steps(net, resolved)
         penalty = hi - lo_free + 1.0
         if options.violations == "permanent":
             # r' = r - c v, v = 1 once any watched part is violated (on every later step)
-            marks = [_tokens([p]) for p in builder.penalties]
+            marks = [tokens([p]) for p in builder.penalties]
             charge = marks[0] if len(marks) == 1 else R.Max(tuple(marks))
         else:
             # r' = r - c * (new violations)
-            new = [R.Sum((_tokens([p]), R.Neg(_tokens([p], prev=True)))) for p in builder.penalties]
+            new = [R.Sum((tokens([p]), R.Neg(tokens([p], prev=True)))) for p in builder.penalties]
             charge = new[0] if len(new) == 1 else R.Sum(tuple(new))
         reward = R.Sum((reward, R.Neg(R.scale(penalty, charge))))
         index = {p.name: i for i, p in enumerate(net.places)}
@@ -776,79 +469,6 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
     else:
         charge = None
     return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, charge)
-
-
-MAX_PAIRS = 200_000
-"""Most marking pairs enumerated to bound the reward of steps without a violation."""
-
-
-def _pairs(net: Net) -> tuple[np.ndarray, np.ndarray] | None:
-    """Every one-move step of the net as (M_k, M_k+1) arrays, or None if there are too many."""
-    sizes = [len(sub.places) ** 2 for sub in net.subnets]
-    if float(np.prod(sizes, dtype=float)) > MAX_PAIRS:
-        return None
-    pairs = list(net.step_pairs())
-    return np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])
-
-
-def _bounds_all_steps(net: Net, reward: R.RExpr) -> tuple[float, float]:
-    """Bounds of ``reward`` over every one-move step (interval bounds if there are too many)."""
-    pairs = _pairs(net)
-    if pairs is None:
-        return R.bounds(reward)
-    values = reward.evaluate(*pairs)
-    return float(values.min()), float(values.max())
-
-
-def _contains(outer: A.Interval, inner: A.Interval) -> bool:
-    lo_ok = outer.lo < inner.lo or (outer.lo == inner.lo and (outer.lo_closed or not inner.lo_closed))
-    hi_ok = outer.hi > inner.hi or (outer.hi == inner.hi and (outer.hi_closed or not inner.hi_closed))
-    return lo_ok and hi_ok
-
-
-def _bounds_without_violation(builder: "_Builder", net: Net, reward: R.RExpr) -> tuple[float, float]:
-    """Bounds of ``reward`` over the steps on which no watched part is violated.
-
-    Every one-move step of the net is enumerated; a step is left out when a
-    violation place is marked after it, or when a watch's guard surely holds
-    on it (its state condition holds for the propositions the region places
-    say, and its clock interval covers the timeline segment) although the
-    watch stayed quiet. Falls back to interval bounds of the whole tree when
-    there are too many steps.
-    """
-    both = _pairs(net)
-    if both is None:
-        return R.bounds(reward)
-    prev, now = both
-    n = len(prev)
-    idx = {p.name: i for i, p in enumerate(net.places)}
-    keep = np.ones(n, dtype=bool)
-    for name in builder.penalties:  # at or after a violation (its reward is pinned or penalised)
-        keep &= now[:, idx[name]] == 0
-    truth = {a: now[:, [idx[n] for n in pos]].sum(axis=1) > 0 for a, (pos, _) in builder.where.items()}
-    segments = {i: builder._segments_clock(frozenset({i})) for i in range(len(builder.segments))}
-    for sub in net.subnets:
-        if sub.role != "violation":
-            continue
-        ok = sub.places[0]
-        for t in sub.transitions:
-            tr = net.transitions[t]
-            if net.place_index(tr.inputs[0]) != ok:
-                continue
-            for term in tr.guard.terms:
-                sure = eval_state(term.state, truth) if term.state is not None else np.ones(n, bool)
-                if term.clock is not None:
-                    covered = np.zeros(n, dtype=bool)
-                    for i, seg in segments.items():
-                        if seg is not None and _contains(term.clock, seg):
-                            covered |= now[:, idx[builder.segments[i]]] > 0
-                    sure &= covered
-                keep &= ~sure
-        keep &= now[:, ok] > 0
-    if not keep.any():
-        return R.bounds(reward)
-    values = reward.evaluate(prev[keep], now[keep])
-    return float(values.min()), float(values.max())
 
 
 def _steps(spec: Spec) -> int:

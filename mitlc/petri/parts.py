@@ -1,0 +1,35 @@
+"""Sub-nets under construction: what each builder of the compiler hands to the assembly.
+
+A :class:`Part` names its places (local indices), its arcs between them with guards, and
+its initially marked place; :meth:`mitlc.petri.compile.compile_spec` numbers them into
+one :class:`~mitlc.petri.net.Net`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+from mitlc.petri import reward as R
+from mitlc.petri.net import Guard
+
+__all__ = ["Part", "tokens"]
+
+
+@dataclass
+class Part:
+    """One sub-net: places ``(name, label)``, arcs ``(src, dst or dsts, guard)`` by local index."""
+
+    name: str
+    kind: str
+    role: str
+    places: list[tuple[str, str]]  # (name, label)
+    arcs: list[tuple[int, int | tuple[int, ...], Guard]]  # local src, local dst(s), guard
+    initial: int
+    formula: str = ""
+    counters: tuple[int, ...] = ()  # local indices of counting places (outside the one-token set)
+
+
+def tokens(names: Sequence[str], prev: bool = False) -> R.Tokens:
+    """Tokens in the places ``names`` now (``prev``: one step ago), resolved at assembly."""
+    return R.Tokens((), tuple(names), prev)

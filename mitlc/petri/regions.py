@@ -1,0 +1,92 @@
+"""State-related sub-nets: propositions grouped into provably disjoint regions, one
+region net per group (thesis section 4-2, net C-2)."""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, Sequence
+
+from mitlc.petri.net import Guard
+from mitlc.petri.parts import Part
+from mitlc.spec import ast as A
+from mitlc.spec import predicates as P
+from mitlc.spec.model import Spec
+
+__all__ = ["state_groups", "covers", "region_net", "initial_region", "init_point"]
+
+
+def state_groups(spec: Spec, names: Sequence[str]) -> tuple[tuple[str, ...], ...]:
+    """Group propositions so that the regions within a group are provably disjoint.
+
+    Greedy, in the order given: each proposition joins the first group whose
+    members it is disjoint from, else starts a new group.
+    """
+    doms = spec.domains()
+    groups: list[list[str]] = []
+    for name in names:
+        pred = spec.prop(name).pred
+        for g in groups:
+            if all(P.provably_disjoint(pred, spec.prop(m).pred, doms) for m in g):
+                g.append(name)
+                break
+        else:
+            groups.append([name])
+    return tuple(tuple(g) for g in groups)
+
+
+def covers(spec: Spec, members: Sequence[str]) -> bool:
+    """True if the members' regions provably cover the whole state space."""
+    preds = [spec.prop(m).pred for m in members]
+    union = preds[0]
+    for p in preds[1:]:
+        union = P.POr(union, p)
+    return P.provably_empty(P.PNot(union), spec.domains())
+
+
+def region_net(spec: Spec, group: tuple[str, ...], unique: Callable[[str], str]) -> Part:
+    """The region net of ``group`` (the thesis's net C-2): a place per proposition, plus
+    "none" unless the regions cover the state space, and an arc between every two places,
+    guarded by the target's region. ``unique`` makes each place name unused."""
+    places = [(unique(f"p_{a}"), a) for a in group]
+    regions: list[A.Formula] = [A.Atom(a) for a in group]
+    if not covers(spec, group):
+        if len(group) == 1:
+            places.append((unique(f"p_not_{group[0]}"), f"!{group[0]}"))
+            regions.append(A.Not(A.Atom(group[0])))
+        else:
+            places.append((unique("p_none_" + "_".join(group)), "none"))
+            none: A.Formula = A.Not(A.Atom(group[0]))
+            for a in group[1:]:
+                none = A.And(none, A.Not(A.Atom(a)))
+            regions.append(none)
+    arcs = [
+        (i, j, Guard.state(regions[j]))
+        for i in range(len(places))
+        for j in range(len(places))
+        if i != j
+    ]
+    initial = initial_region(spec, group)
+    return Part(f"region({', '.join(group)})", "state", "region", places, arcs, initial)
+
+def initial_region(spec: Spec, group: tuple[str, ...]) -> int:
+    """The place marked first: the region of the centre of the spec's initial set."""
+    point = init_point(spec)
+    if point is not None:
+        for i, a in enumerate(group):
+            pred = spec.prop(a).pred
+            if all(v.name in point for v in P.variables(pred)) and bool(P.evaluate(pred, point)):
+                return i
+    return len(group) if not covers(spec, group) else 0
+
+def init_point(spec: Spec) -> dict[str, float] | None:
+    """The centre of the spec's initial set (angles wrapped), None without an ``init``."""
+    if not spec.init:
+        return None
+    point = {r.var: 0.5 * (r.lo + r.hi) for r in spec.init}
+    plant = spec.plant
+    if plant is not None:
+        for v in plant.state:
+            point.setdefault(v.name, 0.0)
+            if v.periodic:
+                point[v.name] = float((point[v.name] + math.pi) % (2 * math.pi) - math.pi)
+    return point
