@@ -7,12 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from mitlc.petri.compile import compile_spec
 from mitlc.errors import TrainingError
-from mitlc.spec.parse import parse_spec
-from mitlc.plants.base import PLANTS
-from mitlc.learn.sacpn import RbfFeatures, Sacpn, SacpnSettings
+from mitlc.learn.features import RbfFeatures
+from mitlc.learn.sacpn import Sacpn, SacpnSettings
+from mitlc.petri.compile import compile_spec
 from mitlc.plants import make_integrator
+from mitlc.plants.base import PLANTS
+from mitlc.spec.parse import parse_spec
 
 P1 = """
 plant pendulum(u_max = 3)
@@ -188,7 +189,7 @@ def test_fused_pendulum_step_equals_plant_step(u_max):
 
 def test_rbf_features_are_normalised_gaussians_and_periodic_in_the_angle():
     plant = PLANTS["pendulum"]
-    f = RbfFeatures(plant.state, (10, 10), 1.0, {"qdot": (-20.0, 20.0)})
+    f = RbfFeatures.for_state(plant.state, (10, 10), 1.0, {"qdot": (-20.0, 20.0)})
     x = np.array([[math.pi - 1e-9, 1.0], [-math.pi + 1e-9, 1.0], [0.3, -50.0], [0.3, -20.0]])
     phi = f(x)
     np.testing.assert_allclose(phi.sum(axis=1), 1.0)

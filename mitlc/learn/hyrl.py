@@ -47,10 +47,11 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from mitlc.hybrid import HybridAutomaton, RewardConstants, compile_requirements
-from mitlc.hybrid.criteria import Verdict, check
 from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import atomic_write
+from mitlc.hybrid import HybridAutomaton, RewardConstants, compile_requirements
+from mitlc.hybrid.criteria import Verdict, check
+from mitlc.learn.features import Axis, RbfFeatures
 from mitlc.learn.settings import check_fraction, check_non_negative, json_default
 from mitlc.learn.settings import from_dict as settings_from_dict
 from mitlc.learn.settings import to_dict as settings_to_dict
@@ -59,7 +60,6 @@ from mitlc.spec.model import Spec
 
 __all__ = [
     "HyrlSettings",
-    "GridFeatures",
     "HybridLearner",
     "HybridRollout",
     "Evaluation",
@@ -219,73 +219,6 @@ def q_warp_for(automaton: HybridAutomaton) -> float:
     return 1.0 if names == {"rise_time"} else 0.5
 
 
-class GridFeatures:
-    """Normalised Gaussian RBFs on a grid over a few variables, for a batch at once.
-
-    A normalised grid of Gaussians factorises into per-variable normalised
-    kernels, so ``phi`` is the outer product of one small vector per variable.
-    Values outside ``[lo, hi]`` are clipped (for the features only).
-
-    ``warps[i] = (origin, power)`` spaces variable ``i``'s centres evenly in the
-    coordinate ``w(z) = o + sign(z - o) D (|z - o| / D) ** power``, ``D`` the larger
-    distance from ``o`` to a bound: with ``power < 1`` the centres crowd towards ``o``
-    (spacing growing like the distance from it) and the kernels narrow with them;
-    ``None`` (or power 1) is an even grid in ``z``.
-
-    >>> f = GridFeatures(("q", "qdot"), ((-1.0, 1.0), (-5.0, 5.0)), (10, 10))
-    >>> phi = f(np.array([[0.0, 0.0], [1.0, -5.0]]))
-    >>> phi.shape, np.allclose(phi.sum(axis=1), 1.0)
-    ((2, 100), True)
-    """
-
-    def __init__(self, names: Sequence[str], bounds: Sequence[tuple[float, float]], counts: Sequence[int],
-                 width: float = 1.0, warps: Sequence[tuple[float, float] | None] | None = None) -> None:
-        self.names = tuple(names)
-        self.bounds = tuple((float(lo), float(hi)) for lo, hi in bounds)
-        self.counts = tuple(int(n) if hi > lo else 1 for n, (lo, hi) in zip(counts, self.bounds))
-        self.warps = tuple(None if w is None or w[1] == 1.0 else (float(w[0]), float(w[1]))
-                           for w in (warps or (None,) * len(self.bounds)))
-        if len(self.warps) != len(self.bounds):
-            raise ValueError("one warp (or None) per variable")
-        self.n_features = int(np.prod(self.counts))
-        self.centres = []
-        self.inv_w2 = []
-        for i, (n, (lo, hi)) in enumerate(zip(self.counts, self.bounds)):
-            wlo, whi = self.warp(i, np.array([lo, hi]))
-            c = np.linspace(wlo, whi, n) if n > 1 else np.array([0.5 * (wlo + whi)])
-            spacing = (whi - wlo) / (n - 1) if n > 1 else 1.0
-            self.centres.append(c)
-            self.inv_w2.append(1.0 / (2.0 * (width * spacing) ** 2))
-
-    def warp(self, i: int, z: np.ndarray, inverse: bool = False) -> np.ndarray:
-        """Variable ``i``'s values in the coordinate its centres are even in (``inverse``:
-        back from that coordinate to the variable's own units)."""
-        w = self.warps[i]
-        if w is None:
-            return z
-        o, power = w
-        lo, hi = self.bounds[i]
-        D = max(o - lo, hi - o)
-        return o + np.sign(z - o) * D * (np.abs(z - o) / D) ** (1.0 / power if inverse else power)
-
-    def centres_in(self, i: int) -> np.ndarray:
-        """Variable ``i``'s centres in its own units."""
-        return self.warp(i, self.centres[i], inverse=True)
-
-    def __call__(self, z: np.ndarray) -> np.ndarray:
-        """Features ``(R, F)`` of ``z (R, len(names))``."""
-        R = z.shape[0]
-        phi = np.ones((R, 1))
-        for i, (c, k, (lo, hi)) in enumerate(zip(self.centres, self.inv_w2, self.bounds)):
-            if len(c) == 1:
-                continue
-            d = self.warp(i, np.clip(z[:, i], lo, hi))[:, None] - c[None, :]
-            g = np.exp(-k * d * d)
-            g /= g.sum(axis=1, keepdims=True)
-            phi = (phi[:, :, None] * g[:, None, :]).reshape(R, -1)
-        return phi
-
-
 # ---------------------------------------------------------------- rollouts
 
 
@@ -399,7 +332,10 @@ class HybridLearner:
         counts = tuple(settings.rbf) + (settings.rbf_clock,) * len(self.time_vars)
         self.q_warp = q_warp_for(A) if settings.q_warp is None else float(settings.q_warp)
         warps = [(A.setpoint, self.q_warp)] + [None] * (len(names) - 1)
-        self.features = GridFeatures(names, bounds, counts, settings.rbf_width, warps)
+        self.features = RbfFeatures(
+            [Axis(n, lo, hi, c, warp=w) for n, (lo, hi), c, w in zip(names, bounds, counts, warps, strict=True)],
+            settings.rbf_width,
+        )
         self.n_features = self.features.n_features
         self.n_modes = len(A.modes)
         R, M, F = self.runs, self.n_modes, self.n_features

@@ -59,10 +59,10 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from mitlc.spec import ast as A
-from mitlc.spec import predicates as P
 from mitlc.petri.compile import RewardSystem
 from mitlc.petri.net import eval_state
+from mitlc.spec import ast as A
+from mitlc.spec import predicates as P
 
 __all__ = ["NetRuntime"]
 

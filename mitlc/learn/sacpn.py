@@ -52,22 +52,23 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Mapping
 
 import numpy as np
 
-from mitlc.petri.compile import RewardSystem
 from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import save_npz
+from mitlc.learn.features import RbfFeatures
+from mitlc.learn.runtime import NetRuntime
 from mitlc.learn.settings import check_fraction, check_non_negative, json_default
 from mitlc.learn.settings import from_dict as settings_from_dict
 from mitlc.learn.settings import to_dict as settings_to_dict
-from mitlc.plants import Plant, make_integrator
-from mitlc.learn.runtime import NetRuntime
+from mitlc.petri.compile import RewardSystem
+from mitlc.plants import make_integrator
 
-__all__ = ["SacpnSettings", "Sacpn", "Rollout", "RbfFeatures"]
+__all__ = ["SacpnSettings", "Sacpn", "Rollout"]
 
 
 @dataclass(frozen=True)
@@ -161,118 +162,6 @@ class SacpnSettings:
                 raise TrainingError(f"{name} must be positive, got {v}")
 
 
-# ---------------------------------------------------------------- features
-
-
-class RbfFeatures:
-    """Normalised Gaussian RBFs on a grid, evaluated for a batch of states in one pass.
-
-    A grid of normalised Gaussians factorises: ``phi_ij = g_i(x_0) h_j(x_1) /
-    (sum g sum h)``, so each variable's kernels are computed once (one small
-    matrix product and one ``exp`` for all variables), normalised per variable,
-    and multiplied out.  The ``-x^2 / 2w^2`` part of each exponent is the same
-    for every centre of that variable and cancels in the normalisation, which
-    leaves an exponent linear in ``[cos q, sin q]`` (angles) or ``x`` (others).
-
-    >>> from mitlc.plants.base import PLANTS
-    >>> f = RbfFeatures(PLANTS["pendulum"].state, (10, 10))
-    >>> phi = f(np.array([[0.0, 0.0], [np.pi, 3.0]]))
-    >>> phi.shape, np.allclose(phi.sum(axis=1), 1.0)
-    ((2, 100), True)
-    """
-
-    def __init__(self, state, counts: tuple[int, ...], width: float = 1.0,
-                 bounds: Mapping[str, tuple[float, float]] | None = None) -> None:
-        if len(counts) != len(state):
-            raise TrainingError(f"rbf has {len(counts)} entries, the plant has {len(state)} state variables")
-        bounds = dict(bounds or {})
-        self.counts = tuple(int(c) for c in counts)
-        self.n_features = int(np.prod(self.counts))
-        cols: list[tuple[int, str, float, float]] = []  # (var index, kind, mid, lo/hi)
-        blocks = []
-        z_rows = 0
-        self.centres: list[np.ndarray] = []
-        for i, (v, n) in enumerate(zip(state, self.counts)):
-            lo, hi = bounds.get(v.name, (v.lo, v.hi))
-            if v.periodic:
-                span = hi - lo
-                c = lo + span * np.arange(n) / n
-                w = width * span / n
-                blocks.append(("periodic", i, z_rows, c, w, lo, hi))
-                z_rows += 2
-            else:
-                c = np.linspace(lo, hi, n) if n > 1 else np.array([0.5 * (lo + hi)])
-                spacing = (hi - lo) / max(n - 1, 1)
-                w = width * spacing
-                blocks.append(("linear", i, z_rows, c, w, lo, hi))
-                z_rows += 1
-            self.centres.append(c)
-        z_rows += 1  # a column of ones carries the constant part of the exponents
-        total = sum(self.counts)
-        W = np.zeros((z_rows, total))
-        offsets = np.cumsum((0,) + self.counts)
-        for b, (kind, i, row, c, w, lo, hi) in enumerate(blocks):
-            sl = slice(offsets[b], offsets[b + 1])
-            if kind == "periodic":
-                k = 1.0 / (w * w)
-                W[row, sl] = k * np.cos(c)
-                W[row + 1, sl] = k * np.sin(c)
-            else:
-                mid = 0.5 * (lo + hi)
-                cc = c - mid
-                W[row, sl] = cc / (w * w)  # applied to x itself: the -mid shift is in the bias
-                W[-1, sl] = -cc * cc / (2 * w * w) - mid * cc / (w * w)
-        self.W = W
-        self._block_ones = np.zeros((total, total))
-        for b in range(len(self.counts)):
-            self._block_ones[offsets[b]:offsets[b + 1], offsets[b]:offsets[b + 1]] = 1.0
-        self.blocks = blocks
-        self.offsets = offsets
-        self.z_rows = z_rows
-        self._buffers: dict[int, tuple] = {}
-
-    def _buf(self, R: int):
-        b = self._buffers.get(R)
-        if b is None:
-            Z = np.empty((R, self.z_rows))
-            Z[:, -1] = 1.0
-            b = (Z, np.empty((R, sum(self.counts))), np.empty((R, sum(self.counts))))
-            self._buffers[R] = b
-        return b
-
-    def __call__(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Features ``(R, F)`` of states ``(R, n)`` (F = product of the counts)."""
-        R = x.shape[0]
-        Z, E, S = self._buf(R)
-        for kind, i, row, c, w, lo, hi in self.blocks:
-            if kind == "periodic":
-                np.cos(x[:, i], out=Z[:, row])
-                np.sin(x[:, i], out=Z[:, row + 1])
-            else:
-                np.minimum(x[:, i], hi, out=Z[:, row])
-                np.maximum(Z[:, row], lo, out=Z[:, row])
-        np.matmul(Z, self.W, out=E)
-        np.exp(E, out=E)
-        o = self.offsets
-        if len(self.counts) == 2:
-            np.matmul(E, self._block_ones, out=S)  # each kernel's block sum
-            np.divide(E, S, out=E)
-            if out is None:
-                out = np.empty((R, self.n_features))
-            np.multiply(E[:, o[0]:o[1], None], E[:, None, o[1]:o[2]],
-                        out=out.reshape(R, self.counts[0], self.counts[1]))
-            return out
-        phi = np.ones((R, 1))
-        for b in range(len(self.counts)):
-            blk = E[:, o[b]:o[b + 1]]
-            blk = blk / blk.sum(axis=1, keepdims=True)
-            phi = (phi[:, :, None] * blk[:, None, :]).reshape(R, -1)
-        if out is not None:
-            out[...] = phi
-            return out
-        return phi
-
-
 # ---------------------------------------------------------------- the learner
 
 
@@ -359,7 +248,7 @@ class Sacpn:
         self.n_tokens = len(acting)
         self.n_tokens_c = self._marked_c.shape[1]
         bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
-        self.features = RbfFeatures(plant.state, settings.rbf, settings.rbf_width, bounds)
+        self.features = RbfFeatures.for_state(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
         self.integrate = make_integrator(plant, self.params)
         init = {r.var: (r.lo, r.hi) for r in spec.init}

@@ -1,0 +1,172 @@
+"""Normalised Gaussian RBF features on a grid: the features of both learners.
+
+SACPN (Table 4-4: 10 x 10 centres over the pendulum's angle and velocity) and HyRL
+(Table 3-2: 10 x 10 x 5 over position, velocity and the initial position, plus the
+mode clocks) use the same features: a grid of Gaussians, normalised to sum to one.
+A normalised grid factorises into one normalised kernel vector per variable, so
+``phi`` is their outer product (run by run, over a leading run axis).
+
+Per axis ``i`` with centres ``c_ij`` spaced ``s_i`` apart and width ``w`` (a multiple
+of the spacing):
+
+* ordinary variables: ``g_ij = exp(-(z_i - c_ij)^2 / (2 (w s_i)^2))``, ``z_i`` clipped to
+  the axis bounds (for the features only);
+* angles (``periodic``): the distance is the chord ``|e^{i z} - e^{i c}|``, so
+  ``g_ij = exp((cos(z_i - c_ij) - 1) / (w s_i)^2)``, centres evenly round the circle;
+* warped axes (``warp = (origin, power)``): centres even in the coordinate
+  ``o + sign(z - o) D (|z - o| / D) ** power`` (``D`` the larger distance from ``o`` to
+  a bound), so that with ``power < 1`` they crowd towards ``o`` and narrow with it.
+
+Every exponent is at most 0 and the nearest centre's is at least ``-1 / (8 w^2)``, so
+no grid, however fine, overflows or divides by zero (a grid of 40 x 40 or more at
+width 0.5 used to, in SACPN's former closed form).
+
+>>> from mitlc.plants import PLANTS
+>>> f = RbfFeatures.for_state(PLANTS["pendulum"].state, (10, 10), bounds={"qdot": (-20.0, 20.0)})
+>>> phi = f(np.array([[0.0, 0.0], [np.pi, 3.0]]))
+>>> phi.shape, bool(np.allclose(phi.sum(axis=1), 1.0))
+((2, 100), True)
+>>> g = RbfFeatures([Axis("q", -1.0, 1.0, 10, warp=(0.0, 0.5)), Axis("qdot", -5.0, 5.0, 10)])
+>>> [round(float(c), 3) for c in g.centres_in(0)[5:]]
+[0.012, 0.111, 0.309, 0.605, 1.0]
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from mitlc.errors import TrainingError
+from mitlc.plants import StateVar
+
+__all__ = ["Axis", "RbfFeatures"]
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One variable of the grid: its bounds, number of centres, and how they are laid out."""
+
+    name: str
+    lo: float
+    hi: float
+    count: int
+    periodic: bool = False
+    """An angle: centres evenly round ``[lo, hi)``, chord distance."""
+    warp: tuple[float, float] | None = None
+    """``(origin, power)``: centres even in the warped coordinate (ordinary variables only)."""
+
+
+class RbfFeatures:
+    """Normalised Gaussian RBFs on a grid of axes, evaluated for a batch of states.
+
+    ``features(z)`` maps ``z (R, len(axes))`` to ``phi (R, F)``, ``F`` the product of the
+    counts; each row sums to one. An axis with one centre (or empty bounds) contributes
+    a constant factor 1.
+    """
+
+    def __init__(self, axes: Sequence[Axis], width: float = 1.0) -> None:
+        self.axes = tuple(axes)
+        self.names = tuple(a.name for a in self.axes)
+        self.bounds = tuple((float(a.lo), float(a.hi)) for a in self.axes)
+        self.counts = tuple(int(a.count) if a.hi > a.lo else 1 for a in self.axes)
+        self.warps = tuple(
+            None if a.periodic or a.warp is None or a.warp[1] == 1.0 else (float(a.warp[0]), float(a.warp[1]))
+            for a in self.axes
+        )
+        self.periodic = tuple(bool(a.periodic) for a in self.axes)
+        self.n_features = int(np.prod(self.counts))
+        self.centres: list[np.ndarray] = []
+        """Per axis, the centres in the coordinate they are even in."""
+        self.inv_w2: list[float] = []
+        """Per axis, ``1 / (2 (width * spacing)^2)``."""
+        for i, (n, (lo, hi)) in enumerate(zip(self.counts, self.bounds, strict=True)):
+            if self.periodic[i]:
+                span = hi - lo
+                c = lo + span * np.arange(n) / n
+                spacing = span / n
+            else:
+                wlo, whi = self.warp(i, np.array([lo, hi]))
+                c = np.linspace(wlo, whi, n) if n > 1 else np.array([0.5 * (wlo + whi)])
+                spacing = (whi - wlo) / (n - 1) if n > 1 else 1.0
+            self.centres.append(c)
+            self.inv_w2.append(1.0 / (2.0 * (width * spacing) ** 2))
+        self._bufs: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+
+    @classmethod
+    def for_state(
+        cls,
+        state: Sequence[StateVar],
+        counts: Sequence[int],
+        width: float = 1.0,
+        bounds: Mapping[str, tuple[float, float]] | None = None,
+    ) -> RbfFeatures:
+        """A grid over a plant's state variables (angles periodic), ``bounds`` overriding
+        the plant's range of some of them (SACPN's ``feature_bounds``)."""
+        if len(counts) != len(state):
+            raise TrainingError(f"rbf has {len(counts)} entries, the plant has {len(state)} state variables")
+        over = dict(bounds or {})
+        axes = []
+        for v, n in zip(state, counts, strict=True):
+            lo, hi = over.get(v.name, (v.lo, v.hi))
+            axes.append(Axis(v.name, lo, hi, int(n), periodic=v.periodic))
+        return cls(axes, width)
+
+    def warp(self, i: int, z: np.ndarray, inverse: bool = False) -> np.ndarray:
+        """Axis ``i``'s values in the coordinate its centres are even in (``inverse``:
+        back from that coordinate to the variable's own units)."""
+        w = self.warps[i]
+        if w is None:
+            return z
+        o, power = w
+        lo, hi = self.bounds[i]
+        D = max(o - lo, hi - o)
+        return o + np.sign(z - o) * D * (np.abs(z - o) / D) ** (1.0 / power if inverse else power)
+
+    def centres_in(self, i: int) -> np.ndarray:
+        """Axis ``i``'s centres in its variable's own units."""
+        return self.warp(i, self.centres[i], inverse=True)
+
+    def _buffers(self, R: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        bufs = self._bufs.get(R)
+        if bufs is None:
+            bufs = self._bufs[R] = [(np.empty((R, len(c))), np.empty((R, len(c)))) for c in self.centres]
+        return bufs
+
+    def __call__(self, z: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Features ``(R, F)`` of ``z (R, len(axes))`` (written into ``out`` when given)."""
+        R = z.shape[0]
+        kernels = []
+        for i, (c, k, (g, d)) in enumerate(zip(self.centres, self.inv_w2, self._buffers(R), strict=True)):
+            if len(c) == 1:
+                continue
+            if self.periodic[i]:  # exp(-k |e^iz - e^ic|^2) = exp(2k cos(z - c) - 2k)
+                np.subtract(z[:, i, None], c, out=g)
+                np.cos(g, out=g)
+                np.multiply(g, 2.0 * k, out=g)
+                np.subtract(g, 2.0 * k, out=g)
+            else:  # exp(-k (z - c)^2), z clipped (and warped)
+                lo, hi = self.bounds[i]
+                zi = np.minimum(np.maximum(z[:, i], lo), hi)
+                np.subtract(self.warp(i, zi)[:, None], c, out=d)
+                np.multiply(d, -k, out=g)
+                np.multiply(g, d, out=g)
+            np.exp(g, out=g)
+            g /= g.sum(axis=1, keepdims=True)
+            kernels.append(g)
+        if len(kernels) < 2:
+            phi = kernels[0].copy() if kernels else np.ones((R, 1))
+        else:
+            phi = kernels[0]
+            for g in kernels[1:-1]:
+                phi = (phi[:, :, None] * g[:, None, :]).reshape(R, -1)
+            g = kernels[-1]
+            if out is not None and out.flags.c_contiguous:  # the last product straight into out
+                np.multiply(phi[:, :, None], g[:, None, :], out=out.reshape(R, phi.shape[1], g.shape[1]))
+                return out
+            phi = (phi[:, :, None] * g[:, None, :]).reshape(R, -1)
+        if out is not None:
+            out[...] = phi
+            return out
+        return phi
