@@ -14,12 +14,11 @@ import argparse
 import statistics
 
 import numpy as np
-
-from mitlc.spec import ast as A
-from mitlc.petri.compile import compile_spec
-from mitlc.spec.parse import parse_spec
-
 from _timing import timed  # bench/ is on sys.path when a bench runs
+
+from mitlc.petri.compile import compile_spec
+from mitlc.spec import ast as A
+from mitlc.spec.parse import parse_spec
 
 PROPS = "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
 UNARY = ("not", "F", "G", "Fi", "Gi", "w")
@@ -55,7 +54,6 @@ def random_formula(rng: np.random.Generator, ops: int) -> A.Formula:
     }[kind]()
 
 
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
@@ -75,7 +73,7 @@ def main() -> None:
             rs = compile_spec(spec)
             places.append(len(rs.net.places))
             trans.append(len(rs.net.transitions))
-            times.append(timed(lambda: compile_spec(parse_spec(text)), args.repeat))
+            times.append(timed(lambda text=text: compile_spec(parse_spec(text)), args.repeat))
         ms = 1000 * statistics.median(times)
         per_op = ms / n
         base = base or per_op
@@ -85,8 +83,10 @@ def main() -> None:
             f"{n:>5} {statistics.mean(places):>7.1f} {statistics.mean(trans):>6.1f} "
             f"{statistics.mean(places) / n:>9.2f} {ms:>8.2f} {per_op:>7.3f} {per_op / base:>6.2f}"
         )
-    print(f"\n50-operator formulas: parse + compile median {1000 * statistics.median(at_50):.1f} ms, "
-          f"worst {1000 * max(at_50):.1f} ms (budget 50 ms)")
+    print(
+        f"\n50-operator formulas: parse + compile median {1000 * statistics.median(at_50):.1f} ms, "
+        f"worst {1000 * max(at_50):.1f} ms (budget 50 ms)"
+    )
 
 
 if __name__ == "__main__":

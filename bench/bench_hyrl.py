@@ -75,11 +75,15 @@ def main() -> None:
     t_loop = timed(one_by_one, args.repeat)
     other = 1.0 if ref.q_warp != 1.0 else 0.5  # the spec's q centres against the other choice
     t_other = timed(lambda: batched(HyrlSettings(q_warp=other)), args.repeat)
-    print(f"HyRL on {args.spec}: {R} runs x {T} trials x {ref.n_steps} samples, {ref.n_features} features, "
-          f"{ref.n_modes} modes, q_warp {ref.q_warp:g}")
+    print(
+        f"HyRL on {args.spec}: {R} runs x {T} trials x {ref.n_steps} samples, {ref.n_features} features, "
+        f"{ref.n_modes} modes, q_warp {ref.q_warp:g}"
+    )
     print(f"  batched (R = {R}):          {t_batch:7.3f} s  {steps / t_batch:10.0f} run-steps/s")
-    print(f"  one run at a time (R = 1): {t_loop:7.3f} s  {steps / t_loop:10.0f} run-steps/s  "
-          f"(same returns: {'yes' if same else 'NO'})")
+    print(
+        f"  one run at a time (R = 1): {t_loop:7.3f} s  {steps / t_loop:10.0f} run-steps/s  "
+        f"(same returns: {'yes' if same else 'NO'})"
+    )
     print(f"  q_warp {other:g} instead:         {t_other:7.3f} s  {steps / t_other:10.0f} run-steps/s")
     print(f"ratio batched / one at a time: {t_loop / t_batch:.1f}x faster")
     print(f"ratio q_warp {ref.q_warp:g} / q_warp {other:g}: {t_batch / t_other:.2f}x the time")

@@ -52,6 +52,7 @@ def measure(plan, backend) -> tuple[float, float, dict]:
 
 def busy_fraction(seconds: float = 2.0) -> float | None:
     """Fraction of this machine's CPU time in use (by anyone) over ``seconds``, from /proc/stat."""
+
     def sample():
         with open("/proc/stat") as fh:
             v = [int(x) for x in fh.readline().split()[1:]]
@@ -94,8 +95,7 @@ def main() -> None:
                     import ray
 
                     t0 = time.perf_counter()
-                    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
-                             logging_level="WARNING")
+                    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, logging_level="WARNING")
                     startup = time.perf_counter() - t0
                     try:
                         wall, cpu, records = measure(plan, RayBackend(workers=workers))
@@ -107,8 +107,10 @@ def main() -> None:
                 elif records != reference:
                     raise SystemExit(f"{name} with {workers} worker(s) gave other metrics than the first measurement")
                 rate[workers].append(n / wall * 60)
-                print(f"{name:5s} {workers} worker{'s' if workers > 1 else ' '}: {wall:6.1f} s, "
-                      f"{rate[workers][-1]:6.1f} tasks/min; the tasks got {cpu / wall:.2f} cores of CPU time{extra}")
+                print(
+                    f"{name:5s} {workers} worker{'s' if workers > 1 else ' '}: {wall:6.1f} s, "
+                    f"{rate[workers][-1]:6.1f} tasks/min; the tasks got {cpu / wall:.2f} cores of CPU time{extra}"
+                )
         r1, r2 = statistics.median(rate[1]), statistics.median(rate[2])
         what = "median " if args.repeat > 1 else ""
         print(f"{name:5s} {what}tasks/min: 1 worker {r1:.1f}, 2 workers {r2:.1f}; 2 workers / 1 worker: {r2 / r1:.2f}x")

@@ -37,9 +37,9 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
-from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 
 SPECS = {
     "p1": "p1_swing_up.mitl",
@@ -130,16 +130,20 @@ def main() -> None:
     rs = compile_spec(spec)
     if args.violations != "off":
         rs_v = compile_spec(spec, CompileOptions.from_spec(spec, violations=args.violations))
-        print(f"problem {args.problem}: {len(rs.net.places)} places off, {len(rs_v.net.places)} with "
-              f"{args.violations}; numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
+        print(
+            f"problem {args.problem}: {len(rs.net.places)} places off, {len(rs_v.net.places)} with "
+            f"{args.violations}; numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}"
+        )
         rate_off, _ = batched(rs, 30, args.trials)
         rate_v, _ = batched(rs_v, 30, args.trials)  # the 2 warm-up trials fix a 2-trial ramp: full penalty
         print(f"R=30 off        : {rate_off:12,.0f} run-steps/s")
         print(f"R=30 {args.violations:<11}: {rate_v:12,.0f} run-steps/s")
         print(f"ratio {args.violations} / off: {rate_v / rate_off:5.2f}x")
         return
-    print(f"problem {args.problem}: {len(rs.net.places)} places, {len(rs.net.subnets)} sub-nets, "
-          f"numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}")
+    print(
+        f"problem {args.problem}: {len(rs.net.places)} places, {len(rs.net.subnets)} sub-nets, "
+        f"numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}"
+    )
     rate1, _ = batched(rs, 1, args.trials)
     rate30, _ = batched(rs, 30, args.trials)
     rate_naive, naive_returns = naive(rs, 3, args.naive_trials)
@@ -150,8 +154,10 @@ def main() -> None:
     print(f"batched R=1 : {rate1:12,.0f} run-steps/s")
     print(f"batched R=30: {rate30:12,.0f} run-steps/s")
     print(f"naive loop  : {rate_naive:12,.0f} run-steps/s")
-    print(f"ratio R=30 / naive: {rate30 / rate_naive:6.1f}x   R=1 / naive: {rate1 / rate_naive:5.1f}x   "
-          f"R=30 / R=1: {rate30 / rate1:5.1f}x")
+    print(
+        f"ratio R=30 / naive: {rate30 / rate_naive:6.1f}x   R=1 / naive: {rate1 / rate_naive:5.1f}x   "
+        f"R=30 / R=1: {rate30 / rate1:5.1f}x"
+    )
     print(f"max |return difference| fast vs naive over {args.naive_trials} trials x 3 runs: {agree:.3g}")
 
 

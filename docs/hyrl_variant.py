@@ -34,8 +34,8 @@ sys.path.insert(0, str(ROOT))
 
 from mitlc.errors import MitlError  # noqa: E402
 from mitlc.learn.hyrl import HybridLearner, HyrlSettings, evaluate  # noqa: E402
-from mitlc.spec.parse import load_spec  # noqa: E402
 from mitlc.learn.settings import parse_assignments  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -60,16 +60,26 @@ def main(argv: list[str] | None = None) -> int:
     big = np.abs(ev.q0) >= 0.1
     ok = ev.ok()
     eighth = max(1, args.trials // 8)
-    print(json.dumps(dict(
-        spec=args.spec, seed=args.seed, runs=args.runs, trials=args.trials, set={k: list(v) if isinstance(v, tuple) else v for k, v in kw.items()}, q_warp=learner.q_warp,
-        success=round(ev.success_rate(big), 2), states=round(ev.state_rate(big), 3),
-        states_all=round(ev.state_rate(), 3),
-        overshoot=round(float((~ev.passed[:, big]).mean()), 3),
-        unstable=round(float((ev.passed & ~ev.stabilised)[:, big].mean()), 3),
-        per_run=[int(n) for n in ok[:, big].sum(axis=1)],
-        wall_s=round(time.perf_counter() - start, 1),
-        curve=[round(float(returns[:, i:i + eighth].mean()), 1) for i in range(0, args.trials, eighth)],
-    )))
+    print(
+        json.dumps(
+            dict(
+                spec=args.spec,
+                seed=args.seed,
+                runs=args.runs,
+                trials=args.trials,
+                set={k: list(v) if isinstance(v, tuple) else v for k, v in kw.items()},
+                q_warp=learner.q_warp,
+                success=round(ev.success_rate(big), 2),
+                states=round(ev.state_rate(big), 3),
+                states_all=round(ev.state_rate(), 3),
+                overshoot=round(float((~ev.passed[:, big]).mean()), 3),
+                unstable=round(float((ev.passed & ~ev.stabilised)[:, big].mean()), 3),
+                per_run=[int(n) for n in ok[:, big].sum(axis=1)],
+                wall_s=round(time.perf_counter() - start, 1),
+                curve=[round(float(returns[:, i : i + eighth].mean()), 1) for i in range(0, args.trials, eighth)],
+            )
+        )
+    )
     return 0
 
 

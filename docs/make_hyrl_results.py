@@ -31,8 +31,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.hybrid import compile_requirements, render_bytes  # noqa: E402
+from mitlc.cli.hybrid import SMALL_STEP, rollout_mode_figure  # noqa: E402
 from mitlc.fileio import atomic_write  # noqa: E402
+from mitlc.hybrid import compile_requirements, render_bytes  # noqa: E402
 from mitlc.learn.hyrl import (  # noqa: E402
     HANDOVER_SIGMA,
     HybridLearner,
@@ -42,9 +43,8 @@ from mitlc.learn.hyrl import (  # noqa: E402
     evaluate,
     train_handover,
 )
-from mitlc.cli.hybrid import SMALL_STEP, rollout_mode_figure  # noqa: E402
-from mitlc.spec.parse import load_spec  # noqa: E402
 from mitlc.learn.plots import learning_curve, png_bytes  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
 
 SPECS = ROOT / "specs" / "mass_damper"
 DOCS = ROOT / "docs"
@@ -89,8 +89,7 @@ def responses_figure(ev, automaton, run: int, title: str):
     for i in range(n):
         b = run * n + i
         ok = bool(ev.ok()[run, i])
-        ax.plot(t, ro.states[b, :, 0], "-" if ok else "--", color="#1d4ed8" if ok else "#b91c1c",
-                lw=0.8, alpha=0.8)
+        ax.plot(t, ro.states[b, :, 0], "-" if ok else "--", color="#1d4ed8" if ok else "#b91c1c", lw=0.8, alpha=0.8)
     ax.axhline(automaton.setpoint, color="k", lw=0.6, ls=":")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("position q [m]")
@@ -145,13 +144,19 @@ def main() -> None:
     ap.add_argument("--trials-rise", type=int, default=2000, help="thesis section 3-3-2: 2000")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-direct", action="store_true", help="skip training the combined spec directly")
-    ap.add_argument("--no-beyond", action="store_true",
-                    help="skip the settling-time and steady-state-error specs (beyond the thesis)")
+    ap.add_argument(
+        "--no-beyond",
+        action="store_true",
+        help="skip the settling-time and steady-state-error specs (beyond the thesis)",
+    )
     ap.add_argument("--quick", action="store_true", help="smoke run: 2 runs, 20/40 trials, to a scratch dir")
     ap.add_argument("--out", type=Path, default=None, help="write here instead of docs/ (default for --quick: /tmp)")
     ap.add_argument("-q", "--quiet", action="store_true")
-    ap.add_argument("--block-only", action="store_true",
-                    help="no training: rewrite the hyrl block of docs/results.md from docs/hyrl_results.json")
+    ap.add_argument(
+        "--block-only",
+        action="store_true",
+        help="no training: rewrite the hyrl block of docs/results.md from docs/hyrl_results.json",
+    )
     args = ap.parse_args()
     if args.block_only:
         write_results_block(json.loads((DOCS / "hyrl_results.json").read_text()), DOCS / "results.md")
@@ -163,9 +168,7 @@ def main() -> None:
     figs = docs / "figures" / "hyrl"
     figs.mkdir(parents=True, exist_ok=True)
     settings = HyrlSettings()
-    command = "python docs/make_hyrl_results.py" + "".join(
-        f" {a}" for a in sys.argv[1:]
-    )
+    command = "python docs/make_hyrl_results.py" + "".join(f" {a}" for a in sys.argv[1:])
     total_start = time.perf_counter()
     rows = []
     learners = {}
@@ -175,40 +178,78 @@ def main() -> None:
         spec, learner, ev, eval_s = train(name, args.runs, trials, args.seed, settings, args.quiet)
         learners[name], evs[name] = learner, ev
         rows.append(row_of(name, "HyRL", spec, learner.runs, trials, ev, learner.wall_s + eval_s))
-        atomic_write(figs / f"learning_{name}.png", png_bytes(learning_curve(
-            learner.returns, title=f"{name}: HyRL on the mass-damper, {learner.runs} runs")))
+        atomic_write(
+            figs / f"learning_{name}.png",
+            png_bytes(learning_curve(learner.returns, title=f"{name}: HyRL on the mass-damper, {learner.runs} runs")),
+        )
 
     combined = load_spec(SPECS / "overshoot_rise_time.mitl")
     start = time.perf_counter()
     ctl = compose(combined, [learners["rise_time"], learners["overshoot"]])
     ev_c = ctl.evaluate(N_INIT)
-    rows.append(row_of("overshoot_rise_time", "composed (3-3-3)", combined, ctl.runs, 0, ev_c,
-                       time.perf_counter() - start,
-                       note="no training: " + ", ".join(f"{m} from {src}" for m, src in ctl.describe().items())))
+    rows.append(
+        row_of(
+            "overshoot_rise_time",
+            "composed (3-3-3)",
+            combined,
+            ctl.runs,
+            0,
+            ev_c,
+            time.perf_counter() - start,
+            note="no training: " + ", ".join(f"{m} from {src}" for m, src in ctl.describe().items()),
+        )
+    )
     bound = brake_bound(ev_c, ctl.automaton, ctl.plant, ctl.params)
-    bound_rates = {"brake_bound_state_rate": float(bound.mean()),
-                   "brake_bound_success_rate": float(bound.all(axis=1).mean())}
+    bound_rates = {
+        "brake_bound_state_rate": float(bound.mean()),
+        "brake_bound_success_rate": float(bound.all(axis=1).mean()),
+    }
     rows[-1].update(bound_rates)
     evs["composed"] = ev_c
     # beyond the thesis: the overshoot learner's modes retrained from the rise-time handovers
     start = time.perf_counter()
     ctl_h, _ = train_handover(ctl, learners["overshoot"], args.trials_overshoot)
     ev_h = ctl_h.evaluate(N_INIT)
-    rows.append(row_of("overshoot_rise_time", "composed, overshoot modes retrained on the handovers", combined,
-                       ctl_h.runs, args.trials_overshoot, ev_h, time.perf_counter() - start,
-                       note="beyond the thesis (docs/hyrl.md): E_Mp, S and P of the overshoot learner trained "
-                            f"on, from the states the rise-time policies hand over, exploring with {HANDOVER_SIGMA} N "
-                            "(`mitlc.learn.hyrl.HANDOVER_SIGMA`); I and E_tr as composed"))
+    rows.append(
+        row_of(
+            "overshoot_rise_time",
+            "composed, overshoot modes retrained on the handovers",
+            combined,
+            ctl_h.runs,
+            args.trials_overshoot,
+            ev_h,
+            time.perf_counter() - start,
+            note="beyond the thesis (docs/hyrl.md): E_Mp, S and P of the overshoot learner trained "
+            f"on, from the states the rise-time policies hand over, exploring with {HANDOVER_SIGMA} N "
+            "(`mitlc.learn.hyrl.HANDOVER_SIGMA`); I and E_tr as composed",
+        )
+    )
     rows[-1].update(bound_rates)  # the same handovers: the same bound
     evs["composed_handover"] = ev_h
     if not args.no_direct:
-        spec, learner, ev, eval_s = train("overshoot_rise_time", args.runs, args.trials_rise, args.seed, settings,
-                                          args.quiet)
+        spec, learner, ev, eval_s = train(
+            "overshoot_rise_time", args.runs, args.trials_rise, args.seed, settings, args.quiet
+        )
         learners["direct"], evs["direct"] = learner, ev
-        rows.append(row_of("overshoot_rise_time", "HyRL, trained directly", spec, learner.runs, args.trials_rise, ev,
-                           learner.wall_s + eval_s))
-        atomic_write(figs / "learning_overshoot_rise_time.png", png_bytes(learning_curve(
-            learner.returns, title=f"overshoot_rise_time: HyRL trained directly, {learner.runs} runs")))
+        rows.append(
+            row_of(
+                "overshoot_rise_time",
+                "HyRL, trained directly",
+                spec,
+                learner.runs,
+                args.trials_rise,
+                ev,
+                learner.wall_s + eval_s,
+            )
+        )
+        atomic_write(
+            figs / "learning_overshoot_rise_time.png",
+            png_bytes(
+                learning_curve(
+                    learner.returns, title=f"overshoot_rise_time: HyRL trained directly, {learner.runs} runs"
+                )
+            ),
+        )
 
     # beyond the thesis: the settling time and the steady-state error (docs/hyrl.md), as many
     # trials as the overshoot (their automata have its shape)
@@ -216,10 +257,15 @@ def main() -> None:
     for name in beyond:
         spec, learner, ev, eval_s = train(name, args.runs, args.trials_overshoot, args.seed, settings, args.quiet)
         learners[name], evs[name] = learner, ev
-        rows.append(row_of(name, "HyRL (beyond the thesis)", spec, learner.runs, args.trials_overshoot, ev,
-                           learner.wall_s + eval_s))
-        atomic_write(figs / f"learning_{name}.png", png_bytes(learning_curve(
-            learner.returns, title=f"{name}: HyRL on the mass-damper, {learner.runs} runs")))
+        rows.append(
+            row_of(
+                name, "HyRL (beyond the thesis)", spec, learner.runs, args.trials_overshoot, ev, learner.wall_s + eval_s
+            )
+        )
+        atomic_write(
+            figs / f"learning_{name}.png",
+            png_bytes(learning_curve(learner.returns, title=f"{name}: HyRL on the mass-damper, {learner.runs} runs")),
+        )
 
     # rollouts like Figures 3-7, 3-14 and 3-15 and the responses of one run from all 50 states
     pics = {}
@@ -233,12 +279,23 @@ def main() -> None:
         run = shown_run(ev)
         n = len(ev.q0)
         picks = sorted({0, n // 2, n - 1})
-        fig = rollout_mode_figure(ev.rollout, automaton, [run * n + i for i in picks], u_max,
-                                  f"{key}: greedy policy of run {run} (background: mode)")
+        fig = rollout_mode_figure(
+            ev.rollout,
+            automaton,
+            [run * n + i for i in picks],
+            u_max,
+            f"{key}: greedy policy of run {run} (background: mode)",
+        )
         atomic_write(figs / f"rollout_{key}.png", png_bytes(fig))
         ok = int(ev.ok()[run].sum())
-        atomic_write(figs / f"responses_{key}.png", png_bytes(responses_figure(
-            ev, automaton, run, f"{key}, run {run}: {ok}/{n} initial states meet the criteria (failures dashed)")))
+        atomic_write(
+            figs / f"responses_{key}.png",
+            png_bytes(
+                responses_figure(
+                    ev, automaton, run, f"{key}, run {run}: {ok}/{n} initial states meet the criteria (failures dashed)"
+                )
+            ),
+        )
         pics[key] = run
     for name in ("overshoot", "rise_time", "overshoot_rise_time") + beyond:
         h = compile_requirements(load_spec(SPECS / f"{name}.mitl"))
@@ -267,9 +324,11 @@ def main() -> None:
 BLOCK_BEGIN = "<!-- hyrl:begin -->"
 BLOCK_END = "<!-- hyrl:end -->"
 SECTION = "## Classical performance on the mass-damper (thesis chapter 3)"
-THESIS_LINE = ("Thesis figures to match: no overshoot for |q0| >= 0.1 after 800 trials (section 3-3-1, Figure 3-8); "
-               "rise time 0.63-0.78 s after 2000 trials (section 3-3-2, Figure 3-14). The thesis shows one learned "
-               "policy per problem and reports no success rate over runs.")
+THESIS_LINE = (
+    "Thesis figures to match: no overshoot for |q0| >= 0.1 after 800 trials (section 3-3-1, Figure 3-8); "
+    "rise time 0.63-0.78 s after 2000 trials (section 3-3-2, Figure 3-14). The thesis shows one learned "
+    "policy per problem and reports no success rate over runs."
+)
 
 
 def results_block(d: dict) -> str:
@@ -299,9 +358,14 @@ def results_block(d: dict) -> str:
         "",
         "Learning curves: [overshoot](figures/hyrl/learning_overshoot.png), "
         "[rise time](figures/hyrl/learning_rise_time.png)"
-        + (", [combined, trained directly](figures/hyrl/learning_overshoot_rise_time.png)"
-           if any(r["method"].startswith("HyRL, trained directly") for r in d["rows"]) else "")
-        + ". Rollouts: " + ", ".join(f"[{k}](figures/hyrl/rollout_{k}.png)" for k in d["shown_runs"]) + ".",
+        + (
+            ", [combined, trained directly](figures/hyrl/learning_overshoot_rise_time.png)"
+            if any(r["method"].startswith("HyRL, trained directly") for r in d["rows"])
+            else ""
+        )
+        + ". Rollouts: "
+        + ", ".join(f"[{k}](figures/hyrl/rollout_{k}.png)" for k in d["shown_runs"])
+        + ".",
         "",
         BLOCK_END,
     ]
@@ -314,7 +378,7 @@ def replace_block(text: str, block: str) -> str:
     if BLOCK_BEGIN in text:
         i = text.index(BLOCK_BEGIN)
         j = text.index(BLOCK_END, i) + len(BLOCK_END)
-        if text[j:j + 1] == "\n":
+        if text[j : j + 1] == "\n":
             j += 1
         return text[:i] + block + text[j:]
     i = text.find("\n" + SECTION + "\n")
@@ -356,9 +420,11 @@ def markdown(d: dict, args) -> str:
         + (f" (Ornstein-Uhlenbeck, correlation time {s['noise_tau']} s)" if s.get("noise_tau") else " (white)")
         + f", RBF width {s['rbf_width']} x spacing, "
         f"qdot grid {'+-' + str(s['qdot_grid']) + ' m/s' if s.get('qdot_grid') else 'the plant bound'}, "
-        + (f"q centres warped towards the set-point (q_warp {s['q_warp']}), "
-           if s.get("q_warp") is not None else
-           "q centres warped towards the set-point (`q_warp` auto: 0.5, an even grid for the rise time alone), ")
+        + (
+            f"q centres warped towards the set-point (q_warp {s['q_warp']}), "
+            if s.get("q_warp") is not None
+            else "q centres warped towards the set-point (`q_warp` auto: 0.5, an even grid for the rise time alone), "
+        )
         + f"critic started `{s.get('critic_init', 'zero')}`, "
         f"anti-wind-up `{s['saturation']}` (see [hyrl.md](hyrl.md)).",
         "",
@@ -393,23 +459,28 @@ def markdown(d: dict, args) -> str:
         if r.get("rise_time_range_when_met"):
             lo, hi = r["rise_time_range_when_met"]
             a, b = r["rise_time_q0_first_last_run0"]
-            extra += (f"; rise times where met {lo:.2f}-{hi:.2f} s (run 0: {a:.2f} s from q0 = -1, "
-                      f"{b:.2f} s from q0 = -0.5)")
+            extra += (
+                f"; rise times where met {lo:.2f}-{hi:.2f} s (run 0: {a:.2f} s from q0 = -1, {b:.2f} s from q0 = -0.5)"
+            )
         if "runs_without_overshoot_step_ge_0.1" in r:
-            extra += (f"; runs with no overshoot from every |q0| >= 0.1: "
-                      f"{pct(r['runs_without_overshoot_step_ge_0.1'])}")
+            extra += f"; runs with no overshoot from every |q0| >= 0.1: {pct(r['runs_without_overshoot_step_ge_0.1'])}"
         for name, unit in (("settling_time", "s"), ("steady_state_error", "m")):
             if f"{name}_median_step_ge_0.1" in r:
                 med, worst = r[f"{name}_median_step_ge_0.1"], r[f"{name}_max_step_ge_0.1"]
-                extra += (f"; {name.replace('_', ' ')} from |q0| >= 0.1: median "
-                          + (f"{med:.3g} {unit}" if med is not None else "never") + ", largest "
-                          + (f"{worst:.3g} {unit}" if worst is not None else "unbounded (some never settle)"))
+                extra += (
+                    f"; {name.replace('_', ' ')} from |q0| >= 0.1: median "
+                    + (f"{med:.3g} {unit}" if med is not None else "never")
+                    + ", largest "
+                    + (f"{worst:.3g} {unit}" if worst is not None else "unbounded (some never settle)")
+                )
         extra += f"; rollouts that stabilise: {pct(r['stabilised_state_rate'])}"
         if "brake_bound_state_rate" in r:
-            extra += (f"; braking at the bound from the state handed over to E_Mp would avoid the overshoot "
-                      f"from {pct(r['brake_bound_state_rate'])} of the states and from all 50 in "
-                      f"{pct(r['brake_bound_success_rate'])} of the runs (`mitlc.learn.hyrl.brake_bound`: the most "
-                      "any overshoot policy could do with these rise-time handovers)")
+            extra += (
+                f"; braking at the bound from the state handed over to E_Mp would avoid the overshoot "
+                f"from {pct(r['brake_bound_state_rate'])} of the states and from all 50 in "
+                f"{pct(r['brake_bound_success_rate'])} of the runs (`mitlc.learn.hyrl.brake_bound`: the most "
+                "any overshoot policy could do with these rise-time handovers)"
+            )
         lines.append(f"- `{Path(r['spec']).name}`, {r['method']}: {parts}{extra}.")
     lines += [
         "",
@@ -434,7 +505,7 @@ def markdown(d: dict, args) -> str:
         "Green I, yellow/orange the evaluating modes, blue S, red P.",
         "",
     ]
-    for key, run in d["shown_runs"].items():
+    for key, _run in d["shown_runs"].items():
         lines += [
             f"![{key} rollouts](figures/hyrl/rollout_{key}.png)",
             "",

@@ -28,11 +28,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitlc.fileio import atomic_write  # noqa: E402
-from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
-from mitlc.monitor.offline import monitor  # noqa: E402
-from mitlc.spec.parse import load_spec  # noqa: E402
 from mitlc.learn.plots import learning_curve, png_bytes, rollout_figure  # noqa: E402
 from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
+from mitlc.monitor.offline import monitor  # noqa: E402
+from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
 
 COMMAND = "python docs/make_results.py"
 RUNS = 30
@@ -41,19 +41,48 @@ FIGURES = ROOT / "docs" / "figures"
 
 PROBLEMS = [
     # key, spec, trials, conjunction override, target, what the thesis reports
-    ("P1", "p1_swing_up.mitl", 500, None, 0.9,
-     "kappa = abs(q) < 0.3: a good swing-up policy in about 400 trials (Fig. 4-3c,d)"),
-    ("P2", "p2_avoid.mitl", 500, None, 0.85,
-     "a very nice convergence of the learning curve; swings up the long way round (Fig. 4-5)"),
-    ("P3", "p3_avoid_speed_limit.mitl", 1000, None, 0.8,
-     "most runs learn the slow swing-up; some swing straight through psi (Fig. 4-8)"),
-    ("P4", "p4_alternate.mitl", 1500, None, 0.6,
-     "the learning curve converges to a negative value; alternation shown (Fig. 4-11). "
-     "The spec reads & as the min over the terms whose timing gate is open (not in the thesis)"),
-    ("P4-literal", "p4_alternate.mitl", 1500, "literal", 0.6,
-     "the thesis's literal min of (4-17)"),
-    ("P5", "p5_timed_visit.mitl", 1000, None, 0.6,
-     "the transient visits kappa in [1, 2] s only, with a margin (Fig. 4-13)"),
+    (
+        "P1",
+        "p1_swing_up.mitl",
+        500,
+        None,
+        0.9,
+        "kappa = abs(q) < 0.3: a good swing-up policy in about 400 trials (Fig. 4-3c,d)",
+    ),
+    (
+        "P2",
+        "p2_avoid.mitl",
+        500,
+        None,
+        0.85,
+        "a very nice convergence of the learning curve; swings up the long way round (Fig. 4-5)",
+    ),
+    (
+        "P3",
+        "p3_avoid_speed_limit.mitl",
+        1000,
+        None,
+        0.8,
+        "most runs learn the slow swing-up; some swing straight through psi (Fig. 4-8)",
+    ),
+    (
+        "P4",
+        "p4_alternate.mitl",
+        1500,
+        None,
+        0.6,
+        "the learning curve converges to a negative value; alternation shown (Fig. 4-11). "
+        "The spec reads & as the min over the terms whose timing gate is open (not in the thesis)",
+    ),
+    ("P4-literal", "p4_alternate.mitl", 1500, "literal", 0.6, "the thesis's literal min of (4-17)"),
+    (
+        "P5",
+        "p5_timed_visit.mitl",
+        1000,
+        None,
+        0.6,
+        "the transient visits kappa in [1, 2] s only, with a margin (Fig. 4-13)",
+    ),
 ]
 
 
@@ -85,8 +114,17 @@ def rollout_png(r: dict, title: str) -> bytes:
     places = rt.subnet_places[s]
     regions = np.searchsorted(places, rt.tables.marked[ro.codes[:5]][..., s])
     names = [rt.net.places[p].name for p in places]
-    fig = rollout_figure(ro.states[:5], ro.actions[:5], regions, names, ro.dt, agent.plant.state_names,
-                         agent.u_max, title, list(r["monitor"].satisfied[:5]))
+    fig = rollout_figure(
+        ro.states[:5],
+        ro.actions[:5],
+        regions,
+        names,
+        ro.dt,
+        agent.plant.state_names,
+        agent.u_max,
+        title,
+        list(r["monitor"].satisfied[:5]),
+    )
     return png_bytes(fig)
 
 
@@ -97,21 +135,29 @@ def main() -> None:
     for key, spec_file, trials, conj, target, thesis in PROBLEMS:
         per_seed = []
         fig = None
-        for seed, color in zip(SEEDS, ("C0", "C1")):
+        for seed, color in zip(SEEDS, ("C0", "C1"), strict=True):
             r = train(spec_file, trials, seed, conj)
             per_seed.append(r)
-            print(f"{key} seed {seed}: success {r['success']:.2f}, final return {r['final_return']:.1f}, "
-                  f"wall {r['wall_s']:.1f} s", flush=True)
-            fig = learning_curve(r["agent"].returns, title=f"{key}: {RUNS} runs per seed", label=f"seed {seed}",
-                                 fig=fig, color=color)
+            print(
+                f"{key} seed {seed}: success {r['success']:.2f}, final return {r['final_return']:.1f}, "
+                f"wall {r['wall_s']:.1f} s",
+                flush=True,
+            )
+            fig = learning_curve(
+                r["agent"].returns, title=f"{key}: {RUNS} runs per seed", label=f"seed {seed}", fig=fig, color=color
+            )
         atomic_write(FIGURES / f"learning_{key.lower()}.png", png_bytes(fig))
         first = per_seed[0]
-        atomic_write(FIGURES / f"rollout_{key.lower()}.png",
-                     rollout_png(first, f"{key}, seed 0: greedy rollouts of runs 0-4 "
-                                        f"(dashed: violates {first['spec'].monitor_formula})"))
+        atomic_write(
+            FIGURES / f"rollout_{key.lower()}.png",
+            rollout_png(
+                first, f"{key}, seed 0: greedy rollouts of runs 0-4 (dashed: violates {first['spec'].monitor_formula})"
+            ),
+        )
         rows.append((key, spec_file, trials, conj, target, thesis, per_seed))
-        raw[key] = [{k: v for k, v in r.items() if k in ("success", "final_return", "wall_s", "max_abs_xi")}
-                    for r in per_seed]
+        raw[key] = [
+            {k: v for k, v in r.items() if k in ("success", "final_return", "wall_s", "max_abs_xi")} for r in per_seed
+        ]
 
     # comparisons on seed 0
     comparisons = []
@@ -124,16 +170,19 @@ def main() -> None:
         print(f"{key} mask=next: success {r['success']:.2f}, final return {r['final_return']:.1f}", flush=True)
         if key == "P1":
             base = next(x for x in rows if x[0] == "P1")[6][0]
-            fig = learning_curve(base["agent"].returns, title="P1: update masking", label="M_k (gradient, default)",
-                                 color="C0")
+            fig = learning_curve(
+                base["agent"].returns, title="P1: update masking", label="M_k (gradient, default)", color="C0"
+            )
             fig = learning_curve(r["agent"].returns, label="M_k+1 (Algorithm 1 as printed)", fig=fig, color="C3")
     atomic_write(FIGURES / "masking.png", png_bytes(fig))
     for sigma in (3.0, 5.0):
         for sat in ("applied", "none"):
             r = train("p2_avoid.mitl", 1000, 0, None, saturation=sat, sigma=sigma)
             comparisons.append((f"saturation={sat}, sigma={sigma:g}", "P2", r))
-            print(f"P2 saturation={sat} sigma={sigma}: success {r['success']:.2f}, max|xi| {r['max_abs_xi']:.0f}",
-                  flush=True)
+            print(
+                f"P2 saturation={sat} sigma={sigma}: success {r['success']:.2f}, max|xi| {r['max_abs_xi']:.0f}",
+                flush=True,
+            )
     total = time.perf_counter() - total_start
     write_doc(rows, comparisons, total)
     atomic_write(FIGURES / "results.json", json.dumps(raw, indent=1) + "\n")
@@ -165,7 +214,7 @@ def write_doc(rows, comparisons, total: float) -> None:
     missed = []
     for key, spec_file, trials, conj, target, thesis, per_seed in rows:
         succ = [r["success"] for r in per_seed]
-        mark = ["**%.2f**" % v if v >= target else "%.2f (below)" % v for v in succ]
+        mark = [f"**{v:.2f}**" if v >= target else f"{v:.2f} (below)" for v in succ]
         if min(succ) < target:
             missed.append((key, succ, target))
         name = f"{key} (`{spec_file}`{', --conjunction ' + conj if conj else ''})"
@@ -176,8 +225,11 @@ def write_doc(rows, comparisons, total: float) -> None:
         )
     lines += [""]
     if missed:
-        lines.append("Targets missed: " + "; ".join(
-            f"{k}: {', '.join('%.2f' % v for v in succ)} against {t:.2f}" for k, succ, t in missed) + ".")
+        lines.append(
+            "Targets missed: "
+            + "; ".join(f"{k}: {', '.join(f'{v:.2f}' for v in succ)} against {t:.2f}" for k, succ, t in missed)
+            + "."
+        )
     else:
         lines.append("Every problem reaches its target on both seeds.")
     p4 = {row[0]: [r["success"] for r in row[6]] for row in rows if row[0].startswith("P4")}
@@ -210,8 +262,13 @@ def write_doc(rows, comparisons, total: float) -> None:
     ]
     for key, *_ in rows:
         k = key.lower()
-        lines += [f"### {key}", "", f"![learning curve {key}](figures/learning_{k}.png)",
-                  f"![rollouts {key}](figures/rollout_{k}.png)", ""]
+        lines += [
+            f"### {key}",
+            "",
+            f"![learning curve {key}](figures/learning_{k}.png)",
+            f"![rollouts {key}](figures/rollout_{k}.png)",
+            "",
+        ]
     lines += [
         "## Update masking: M_k (gradient) against M_k+1 (Algorithm 1 as printed)",
         "",
@@ -227,15 +284,24 @@ def write_doc(rows, comparisons, total: float) -> None:
         if kind != "mask":
             continue
         b = by_key[key]
-        lines.append(f"| {key} | {b['success']:.2f} | {r['success']:.2f} | {b['final_return']:.1f} | "
-                     f"{r['final_return']:.1f} | {r['max_abs_xi']:.3g} |")
-    lines += ["", "![masking](figures/masking.png)", "",
-              "## Actor wind-up (problem 2, 1000 trials, seed 0)", "",
-              "`saturation=applied` (default) clips the policy to the input bound, updates with the exploration "
-              "actually applied, and never moves a saturated output further past the bound; `none` is the "
-              "thesis's update. max abs(Xi) is the largest actor parameter at the end.", "",
-              "| setting | success | final return | max abs(Xi) |", "| --- | ---: | ---: | ---: |"]
-    for kind, key, r in comparisons:
+        lines.append(
+            f"| {key} | {b['success']:.2f} | {r['success']:.2f} | {b['final_return']:.1f} | "
+            f"{r['final_return']:.1f} | {r['max_abs_xi']:.3g} |"
+        )
+    lines += [
+        "",
+        "![masking](figures/masking.png)",
+        "",
+        "## Actor wind-up (problem 2, 1000 trials, seed 0)",
+        "",
+        "`saturation=applied` (default) clips the policy to the input bound, updates with the exploration "
+        "actually applied, and never moves a saturated output further past the bound; `none` is the "
+        "thesis's update. max abs(Xi) is the largest actor parameter at the end.",
+        "",
+        "| setting | success | final return | max abs(Xi) |",
+        "| --- | ---: | ---: | ---: |",
+    ]
+    for kind, _key, r in comparisons:
         if kind.startswith("saturation"):
             lines.append(f"| {kind} | {r['success']:.2f} | {r['final_return']:.1f} | {r['max_abs_xi']:.0f} |")
     lines += [
@@ -250,18 +316,23 @@ def write_doc(rows, comparisons, total: float) -> None:
         "why both parts are the default.",
     ]
     lines += ["", "Per-seed numbers in machine-readable form: [figures/results.json](figures/results.json).", ""]
-    lines += ["## The weight sweep of Figure 4-6", "",
-              "Problem 2 with the weight of `G !psi` in {1, 2, 5, 10, 20}, 3 seeds, with and without "
-              "`--violations permanent`, run by `mitlc sweep` (`python docs/make_sweep_results.py`): the table "
-              "and its reading are in [sweep_results.md](sweep_results.md).", "",
-              "![success rate over the psi weight](figures/sweep_p2_weights.png)", ""]
+    lines += [
+        "## The weight sweep of Figure 4-6",
+        "",
+        "Problem 2 with the weight of `G !psi` in {1, 2, 5, 10, 20}, 3 seeds, with and without "
+        "`--violations permanent`, run by `mitlc sweep` (`python docs/make_sweep_results.py`): the table "
+        "and its reading are in [sweep_results.md](sweep_results.md).",
+        "",
+        "![success rate over the psi weight](figures/sweep_p2_weights.png)",
+        "",
+    ]
     page = ROOT / "docs" / "results.md"
     old = page.read_text(encoding="utf-8") if page.is_file() else ""
     # the sections other scripts write: docs/make_hyrl_results.py, docs/make_violation_results.py
     for name in ("hyrl", "violations"):
         begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
         if begin in old and end in old:
-            lines += [old[old.index(begin): old.index(end) + len(end)], ""]
+            lines += [old[old.index(begin) : old.index(end) + len(end)], ""]
     atomic_write(page, "\n".join(lines))
 
 

@@ -21,10 +21,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from mitlc.fileio import atomic_write  # noqa: E402
+from mitlc.learn.plots import png_bytes  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
-from mitlc.learn.plots import png_bytes  # noqa: E402
-from mitlc.fileio import atomic_write  # noqa: E402
 from mitlc.sweep import heatmap_figure, plan_sweep, summarize, with_weights  # noqa: E402
 
 SPEC = "specs/pendulum/p2_avoid.mitl"
@@ -32,16 +32,32 @@ WEIGHTS = (1, 2, 5, 10, 20)
 GRID = (f"weight.psi={','.join(str(w) for w in WEIGHTS)}", "option.violations=off,permanent")
 SEEDS, RUNS, TRIALS = 3, 30, 500
 OUT = "runs/sweep_p2_weights"
-COMMAND = ["mitlc", "sweep", SPEC, "--grid", GRID[0], "--grid", GRID[1], "--seeds", str(SEEDS),
-           "--runs", str(RUNS), "--trials", str(TRIALS), "--out", OUT]
+COMMAND = [
+    "mitlc",
+    "sweep",
+    SPEC,
+    "--grid",
+    GRID[0],
+    "--grid",
+    GRID[1],
+    "--seeds",
+    str(SEEDS),
+    "--runs",
+    str(RUNS),
+    "--trials",
+    str(TRIALS),
+    "--out",
+    OUT,
+]
 PAGE = ROOT / "docs" / "sweep_results.md"
 FIGURE = ROOT / "docs" / "figures" / "sweep_p2_weights.png"
 
 
 def run_sweep_command() -> tuple[int, float]:
     """Run the sweep; returns how many tasks this run did and its wall seconds (from the command's output)."""
-    proc = subprocess.run([sys.executable, "-m", "mitlc", *COMMAND[1:], "-q"], cwd=ROOT, stdout=subprocess.PIPE,
-                          text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "mitlc", *COMMAND[1:], "-q"], cwd=ROOT, stdout=subprocess.PIPE, text=True
+    )
     print(proc.stdout, end="")
     if proc.returncode != 0:
         raise SystemExit(f"mitlc sweep failed with exit code {proc.returncode}")
@@ -71,9 +87,11 @@ def main() -> None:
     atomic_write(FIGURE, png_bytes(fig))
 
     n_runs = SEEDS * RUNS
-    table = ["| weight of `G !psi` | violations | penalty c | success, seed 0 / 1 / 2 | success, mean | "
-             f"runs entering psi (of {n_runs}) | other failing runs | final return, mean |",
-             "| ---: | --- | ---: | --- | ---: | ---: | ---: | ---: |"]
+    table = [
+        "| weight of `G !psi` | violations | penalty c | success, seed 0 / 1 / 2 | success, mean | "
+        f"runs entering psi (of {n_runs}) | other failing runs | final return, mean |",
+        "| ---: | --- | ---: | --- | ---: | ---: | ---: | ---: |",
+    ]
     success: dict[tuple[str, str], float] = {}
     entering: dict[tuple[str, str], int] = {}
     for r in rows:
@@ -85,10 +103,12 @@ def main() -> None:
         other = ", ".join(f"{n} ({k})" for k, n in sorted(fails.items())) or "0"
         c = penalty(spec, float(w), v)
         success[labels], entering[labels] = r["success_rate"], psi
-        table.append(f"| {w} | {v} | {c:,.0f} | {per_seed} | {r['success_rate']:.2f} | {psi} | {other} | "
-                     f"{r['final_return']:.1f} |" if c else
-                     f"| {w} | {v} | - | {per_seed} | {r['success_rate']:.2f} | {psi} | {other} | "
-                     f"{r['final_return']:.1f} |")
+        table.append(
+            f"| {w} | {v} | {c:,.0f} | {per_seed} | {r['success_rate']:.2f} | {psi} | {other} | "
+            f"{r['final_return']:.1f} |"
+            if c
+            else f"| {w} | {v} | - | {per_seed} | {r['success_rate']:.2f} | {psi} | {other} | {r['final_return']:.1f} |"
+        )
     check_reading(success, entering)
     cpu = sum(r["cpu_s"] for r in records.values())
     task_wall = sum(r["wall_s"] for r in records.values())

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 import mitlc
-from mitlc.monitor.offline import monitor
 from mitlc.learn.sacpn import Sacpn, SacpnSettings
+from mitlc.monitor.offline import monitor
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -60,8 +60,10 @@ def main(argv: list[str] | None = None) -> int:
     rollout = agent.rollout(agent.evaluation_states())
     verdict = monitor(spec, rollout.states, rollout.dt)
     for r in range(args.runs):
-        what = "satisfied" if verdict.satisfied[r] else (
-            f"violated at {verdict.violation_time[r]:g} s by {verdict.failing[r]}"
+        what = (
+            "satisfied"
+            if verdict.satisfied[r]
+            else (f"violated at {verdict.violation_time[r]:g} s by {verdict.failing[r]}")
         )
         print(f"run {r}: greedy return {rollout.returns[r]:+8.2f}, robustness {verdict.robustness[r]:+.3f}, {what}")
     print(f"satisfied {int(verdict.satisfied.sum())}/{args.runs}")
@@ -69,8 +71,9 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     agent.save(out / "params.npz")
-    np.savez(out / "rollout.npz", states=rollout.states, actions=rollout.actions, rewards=rollout.rewards,
-             dt=rollout.dt)
+    np.savez(
+        out / "rollout.npz", states=rollout.states, actions=rollout.actions, rewards=rollout.rewards, dt=rollout.dt
+    )
     print(f"wrote params.npz, rollout.npz to {out}")
     return 0
 

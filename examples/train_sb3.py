@@ -58,8 +58,12 @@ def main(argv: list[str] | None = None) -> int:
 
     def make_env() -> MitlRewardWrapper:
         return MitlRewardWrapper(
-            gym.make("Pendulum-v1"), args.spec, pendulum_v1_state,
-            marking_obs="box", verdict="end", truncate_at_horizon=True,
+            gym.make("Pendulum-v1"),
+            args.spec,
+            pendulum_v1_state,
+            marking_obs="box",
+            verdict="end",
+            truncate_at_horizon=True,
         )
 
     try:
@@ -91,8 +95,10 @@ def main(argv: list[str] | None = None) -> int:
         verdict = info.get("verdict")
         ok = verdict is not None and verdict["satisfied"]
         satisfied += ok
-        what = "" if verdict is None else (
-            "  satisfied" if ok else f"  violated at {verdict['violation_time']} s by {verdict['failing']}"
+        what = (
+            ""
+            if verdict is None
+            else ("  satisfied" if ok else f"  violated at {verdict['violation_time']} s by {verdict['failing']}")
         )
         print(f"test episode {episode}: return {total:+.1f}{what}")
     print(f"satisfied {satisfied}/{args.episodes}")

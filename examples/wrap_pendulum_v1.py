@@ -39,8 +39,12 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         env = MitlRewardWrapper(
-            gym.make("Pendulum-v1"), args.spec, pendulum_v1_state,
-            marking_obs=args.marking_obs, verdict="end", truncate_at_horizon=True,
+            gym.make("Pendulum-v1"),
+            args.spec,
+            pendulum_v1_state,
+            marking_obs=args.marking_obs,
+            verdict="end",
+            truncate_at_horizon=True,
         )
     except MitlError as err:
         print(err.render(), file=sys.stderr)
@@ -67,14 +71,18 @@ def main(argv: list[str] | None = None) -> int:
     print(f"return {total:+.2f} (Pendulum-v1's own reward would give {env_total:+.2f})")
     verdict = info.get("verdict")
     if verdict is not None:
-        what = "satisfied" if verdict["satisfied"] else f"violated at {verdict['violation_time']} s by {verdict['failing']}"
+        what = (
+            "satisfied"
+            if verdict["satisfied"]
+            else f"violated at {verdict['violation_time']} s by {verdict['failing']}"
+        )
         print(f"monitor: {what}, robustness {verdict['robustness']:+.3f}")
     env.close()
     return 0
 
 
 def _marked(marking: np.ndarray, names: tuple[str, ...]) -> str:
-    return ", ".join(n for n, m in zip(names, marking) if m)
+    return ", ".join(n for n, m in zip(names, marking, strict=True) if m)
 
 
 if __name__ == "__main__":

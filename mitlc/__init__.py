@@ -6,8 +6,8 @@
 (1 + ~p_k) * (p_k - p_not_k)
 """
 
-from mitlc.petri.compile import CompileOptions, RewardSystem, compile_spec
 from mitlc.errors import CompileError, InputError, MitlError, SpecError, SpecSyntaxError, TrainingError
+from mitlc.petri.compile import CompileOptions, RewardSystem, compile_spec
 from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 
 __version__ = "0.1.0"

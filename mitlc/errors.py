@@ -45,7 +45,7 @@ class MitlError(Exception):
         self.source = source
         self.hint = hint
 
-    def located(self, file: str | None = None, source: str | None = None) -> "MitlError":
+    def located(self, file: str | None = None, source: str | None = None) -> MitlError:
         """Fill in the file name and source text if they are not known yet."""
         if self.file is None:
             self.file = file

@@ -51,7 +51,8 @@ from __future__ import annotations
 import importlib
 import math
 import os
-from typing import Any, Callable, Mapping, SupportsFloat, Union
+from collections.abc import Callable, Mapping
+from typing import Any, SupportsFloat
 
 import numpy as np
 
@@ -59,24 +60,19 @@ try:
     import gymnasium as gym
     from gymnasium import spaces
 except ImportError as exc:  # pragma: no cover - exercised in a subprocess by tests/test_gym.py
-    raise ImportError(
-        "mitlc.gym needs Gymnasium, an optional dependency: pip install 'mitlc[gym]'"
-    ) from exc
+    raise ImportError("mitlc.gym needs Gymnasium, an optional dependency: pip install 'mitlc[gym]'") from exc
 
-from mitlc.spec import predicates as P
-from mitlc.petri.compile import RewardSystem, compile_spec
 from mitlc.errors import InputError
-from mitlc.spec.parse import load_spec
-from mitlc.plants.base import wrap_angle
 from mitlc.learn.runtime import NetRuntime
+from mitlc.petri.compile import RewardSystem, compile_spec
+from mitlc.plants.base import wrap_angle
+from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
+from mitlc.spec.parse import load_spec
 
 __all__ = ["MitlRewardWrapper", "pendulum_v1_state", "Observe", "MARKING_OBS", "VERDICT"]
 
-Observe = Union[
-    Callable[[Any], Mapping[str, float]],
-    Mapping[str, Union[int, Callable[[Any], float]]],
-]
+Observe = Callable[[Any], Mapping[str, float]] | Mapping[str, int | Callable[[Any], float]]
 """How to read the spec's state variables off an observation."""
 
 MARKING_OBS = ("dict", "box")
@@ -111,9 +107,7 @@ def _reward_system(spec: RewardSystem | Spec | str | os.PathLike) -> RewardSyste
         return compile_spec(spec)
     if isinstance(spec, (str, os.PathLike)):
         return compile_spec(load_spec(spec))
-    raise InputError(
-        f"expected a RewardSystem, a Spec or the path of a .mitl file, got {type(spec).__name__}"
-    )
+    raise InputError(f"expected a RewardSystem, a Spec or the path of a .mitl file, got {type(spec).__name__}")
 
 
 def _state_names(spec: Spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -175,7 +169,12 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         truncate_at_horizon: bool = False,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(
-            self, spec=spec, observe=observe, marking_obs=marking_obs, dt=dt, verdict=verdict,
+            self,
+            spec=spec,
+            observe=observe,
+            marking_obs=marking_obs,
+            dt=dt,
+            verdict=verdict,
             truncate_at_horizon=truncate_at_horizon,
         )
         gym.Wrapper.__init__(self, env)
@@ -198,7 +197,8 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._marking_dtype = np.int8 if binary else np.int64
         if marking_obs == "dict":
             marking_space = (
-                spaces.MultiBinary(n_places) if binary
+                spaces.MultiBinary(n_places)
+                if binary
                 else spaces.Box(np.zeros(n_places, np.float32), self.token_bounds.astype(np.float32), dtype=np.float32)
             )
             self.observation_space = spaces.Dict({"obs": base, "marking": marking_space})
@@ -229,7 +229,8 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
         self._read = self._reader(observe, base)
         self._periodic = np.array(
-            [self.mitl_spec.plant is not None and self.mitl_spec.plant.var(n).periodic for n in self.state_names], dtype=bool
+            [self.mitl_spec.plant is not None and self.mitl_spec.plant.var(n).periodic for n in self.state_names],
+            dtype=bool,
         )
         self._monitor = None
         if verdict != "off":
@@ -254,26 +255,36 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             def read(obs: Any) -> np.ndarray:
                 values = fn(obs)
                 if not isinstance(values, Mapping):
-                    raise InputError(f"observe() must return a mapping from state variable to value, got {type(values).__name__}")
+                    raise InputError(
+                        f"observe() must return a mapping from state variable to value, got {type(values).__name__}"
+                    )
                 missing = [n for n in needed if n not in values]
                 if missing:
                     raise InputError(
-                        f"observe() gave no value for state variable '{missing[0]}' (the propositions read {', '.join(needed)})"
+                        f"observe() gave no value for state variable '{missing[0]}' "
+                        f"(the propositions read {', '.join(needed)})"
                     )
                 x = np.full(len(names), np.nan)
                 for key, v in values.items():
                     if key not in column:
-                        raise InputError(f"observe() gave '{key}', which is not a state variable of the spec ({', '.join(names)})")
+                        raise InputError(
+                            f"observe() gave '{key}', which is not a state variable of the spec ({', '.join(names)})"
+                        )
                     x[column[key]] = float(np.asarray(v, dtype=float))
                 return x
 
         elif isinstance(observe, Mapping):
             unknown = [k for k in observe if k not in column]
             if unknown:
-                raise InputError(f"observe maps '{unknown[0]}', which is not a state variable of the spec ({', '.join(names)})")
+                raise InputError(
+                    f"observe maps '{unknown[0]}', which is not a state variable of the spec ({', '.join(names)})"
+                )
             missing = [n for n in needed if n not in observe]
             if missing:
-                raise InputError(f"observe gives no value for state variable '{missing[0]}' (the propositions read {', '.join(needed)})")
+                raise InputError(
+                    f"observe gives no value for state variable '{missing[0]}' "
+                    f"(the propositions read {', '.join(needed)})"
+                )
             try:
                 size: int | None = spaces.flatdim(base)
             except (NotImplementedError, ValueError, TypeError):
@@ -285,7 +296,9 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 elif isinstance(how, (int, np.integer)) and not isinstance(how, bool):
                     i = int(how)
                     if size is not None and not -size <= i < size:
-                        raise InputError(f"observe maps '{key}' to index {i}, outside the flattened observation of size {size}")
+                        raise InputError(
+                            f"observe maps '{key}' to index {i}, outside the flattened observation of size {size}"
+                        )
                     getters.append((column[key], lambda obs, flat, i=i: float(flat[i])))
                 else:
                     raise InputError(f"observe maps '{key}' to {how!r}: expected an index or a function obs -> value")

@@ -32,23 +32,60 @@ for _spec in PENDULUM:
     CASES[f"compile-{_name}"] = ["compile", _spec, "--format", "json"]
     CASES[f"compile-{_name}-permanent"] = ["compile", _spec, "--format", "json", "--violations", "permanent"]
 CASES["compile-p4-active-counted"] = [
-    "compile", "specs/pendulum/p4_alternate.mitl", "--format", "json",
-    "--conjunction", "active", "--violations", "counted",
+    "compile",
+    "specs/pendulum/p4_alternate.mitl",
+    "--format",
+    "json",
+    "--conjunction",
+    "active",
+    "--violations",
+    "counted",
 ]
 for _spec in MASS_DAMPER:
     _name = _spec.removeprefix("specs/").removesuffix(".mitl").replace("/", "-")
     CASES[f"automaton-{_name}"] = ["automaton", _spec, "--format", "json"]
 CASES["train-p1"] = [
-    "train", "--spec", "specs/pendulum/p1_swing_up.mitl", "--runs", "3", "--trials", "150",
-    "--seed", "0", "--out", "{out}",
+    "train",
+    "--spec",
+    "specs/pendulum/p1_swing_up.mitl",
+    "--runs",
+    "3",
+    "--trials",
+    "150",
+    "--seed",
+    "0",
+    "--out",
+    "{out}",
 ]
 CASES["train-p2-unit-permanent"] = [
-    "train", "--spec", "specs/pendulum/unit_weights/p2_avoid.mitl", "--violations", "permanent",
-    "--runs", "2", "--trials", "100", "--seed", "1", "--out", "{out}",
+    "train",
+    "--spec",
+    "specs/pendulum/unit_weights/p2_avoid.mitl",
+    "--violations",
+    "permanent",
+    "--runs",
+    "2",
+    "--trials",
+    "100",
+    "--seed",
+    "1",
+    "--out",
+    "{out}",
 ]
 CASES["train-hyrl-overshoot"] = [
-    "train", "--plant", "mass-damper", "--spec", "specs/mass_damper/overshoot.mitl",
-    "--runs", "2", "--trials", "30", "--seed", "0", "--out", "{out}",
+    "train",
+    "--plant",
+    "mass-damper",
+    "--spec",
+    "specs/mass_damper/overshoot.mitl",
+    "--runs",
+    "2",
+    "--trials",
+    "30",
+    "--seed",
+    "0",
+    "--out",
+    "{out}",
 ]
 
 # Fields of metrics.json that measure the machine, not the result.
@@ -57,9 +94,9 @@ VOLATILE = {"wall_s"}
 
 def run_case(args: list[str]) -> dict[str, object]:
     """Run one case in-process from the repository root; what it produced."""
-    from mitlc.cli import main
-
     import os
+
+    from mitlc.cli import main
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
@@ -79,6 +116,9 @@ def run_case(args: list[str]) -> dict[str, object]:
             metrics.pop(k, None)
         with np.load(out / "params.npz") as z:
             params = {k: z[k] for k in z.files}
+        if "meta" in params:  # the checkpoint's record, less its wall time
+            meta = json.loads(str(params["meta"]))
+            params["meta"] = np.array(json.dumps({k: v for k, v in meta.items() if k not in VOLATILE}))
         return {"metrics": metrics, "params": params}
 
 

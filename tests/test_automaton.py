@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from mitlc.errors import SpecError
 from mitlc.hybrid import (
     FALSE,
     TRUE,
@@ -23,7 +24,6 @@ from mitlc.hybrid import (
     guard_to_dict,
     negate,
 )
-from mitlc.errors import SpecError
 from mitlc.spec.parse import load_spec, parse_spec
 
 HEAD = "plant mass-damper\nsetpoint 0\n"
@@ -95,8 +95,9 @@ def test_combined_automaton_is_table_b5(spec_dir):
 
 
 def test_thresholds_follow_the_setpoint_and_allowed_overshoot():
-    h = compile_requirements(parse_spec(
-        "plant mass-damper\nsetpoint 0.5\ninit q in [-1, -0.5], qdot = 0\nrequire overshoot <= 0.2\n"))
+    h = compile_requirements(
+        parse_spec("plant mass-damper\nsetpoint 0.5\ninit q in [-1, -0.5], qdot = 0\nrequire overshoot <= 0.2\n")
+    )
     # 95% of the step: s + 0.05 (q0 - s); the peak (3-1): s + M_p (s - q0)
     assert str(h.edge("I", "E_Mp").guard) == "q > 0.05*q0 + 0.475"
     assert str(h.edge("E_Mp", "P").guard) == "q > -0.2*q0 + 0.6"
@@ -168,12 +169,12 @@ WIDE = "init q in [-1, 1], qdot = 0\n"
 def test_overshoot_rising_sequence_and_rewards_by_hand():
     h = automaton(OVERSHOOT, WIDE)
     traj = states(
-        (-1.0, 0.0),    # start: I
-        (-0.5, 1.0),    # q <= 0.05 q0: still I, moving towards 0: reward 0
-        (-0.04, 1.0),   # q > -0.05: E_Mp, reward -3 |0 - q| = -0.12
+        (-1.0, 0.0),  # start: I
+        (-0.5, 1.0),  # q <= 0.05 q0: still I, moving towards 0: reward 0
+        (-0.04, 1.0),  # q > -0.05: E_Mp, reward -3 |0 - q| = -0.12
         (-0.02, -0.1),  # velocity turned: S, just entered: -0.06, no bonus
-        (-0.03, 0.0),   # in [0.1 q0, 0] = [-0.1, 0]: stays S: -0.09 + 3
-        (0.01, 0.5),    # past the set-point: P, -9
+        (-0.03, 0.0),  # in [0.1 q0, 0] = [-0.1, 0]: stays S: -0.09 + 3
+        (0.01, 0.5),  # past the set-point: P, -9
         (-0.05, -0.5),  # back inside (-0.1, 0): S, -0.15 (no bonus: came from P)
     )
     tr = h.trace(traj, dt=0.03)
@@ -181,7 +182,7 @@ def test_overshoot_rising_sequence_and_rewards_by_hand():
     np.testing.assert_allclose(tr.rewards[0], [0.0, -0.12, -0.06, 2.91, -9.0, -0.15], atol=1e-12)
     # every sample satisfies the invariant of its mode
     for k, name in enumerate(tr.mode_names()):
-        env = {"q": traj[0, k:k + 1, 0], "qdot": traj[0, k:k + 1, 1], "q0": np.array([-1.0])}
+        env = {"q": traj[0, k : k + 1, 0], "qdot": traj[0, k : k + 1, 1], "q0": np.array([-1.0])}
         assert evaluate(h.mode(name).invariant, env).all(), (k, name)
 
 
@@ -201,10 +202,15 @@ def test_idle_penalises_moving_away_and_standing_still():
 
 def test_overshoot_inside_e_goes_to_p_and_jumps_chain_in_one_sample():
     h = automaton(OVERSHOOT, WIDE)
-    tr = h.trace(np.stack([
-        states((-1.0, 0.0), (-0.04, 2.0), (0.02, 1.0), (0.01, -0.5))[0],
-        states((-1.0, 0.0), (0.01, 2.0), (0.0, 0.0), (0.0, 0.0))[0],  # I -> E_Mp -> P at once
-    ]), dt=0.03)
+    tr = h.trace(
+        np.stack(
+            [
+                states((-1.0, 0.0), (-0.04, 2.0), (0.02, 1.0), (0.01, -0.5))[0],
+                states((-1.0, 0.0), (0.01, 2.0), (0.0, 0.0), (0.0, 0.0))[0],  # I -> E_Mp -> P at once
+            ]
+        ),
+        dt=0.03,
+    )
     assert tr.mode_names(0) == ["I", "E_Mp", "P", "P"]
     assert tr.mode_names(1) == ["I", "P", "P", "P"]  # q = 0 is on neither side of S's open interior
     np.testing.assert_array_equal(tr.rewards[1], [-9.0, -9.0, -9.0])
@@ -246,7 +252,7 @@ def test_rise_time_violations_go_to_a_permanent_p(qs, why):
     tr = h.trace(traj, dt=0.1)
     assert tr.sequence() == ["I", "E_tr", "P"], why
     first_p = tr.mode_names().index("P")
-    np.testing.assert_array_equal(tr.rewards[0, first_p - 1:], -9.0)
+    np.testing.assert_array_equal(tr.rewards[0, first_p - 1 :], -9.0)
 
 
 def test_combined_chain_rise_then_overshoot():

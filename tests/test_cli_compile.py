@@ -88,7 +88,10 @@ def test_bad_spec_exit_2_no_traceback(tmp_path: Path) -> None:
     out = tmp_path / "out.json"
     r = run("compile", str(bad), "--format", "json", "-o", str(out))
     assert r.exit_code == 2
-    assert r.output.splitlines()[0] == f"{bad}:2:11: error: inverted interval [2,1]: the lower end must not exceed the upper"
+    assert (
+        r.output.splitlines()[0]
+        == f"{bad}:2:11: error: inverted interval [2,1]: the lower end must not exceed the upper"
+    )
     assert "Traceback" not in r.output and not out.exists()
 
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.petri.compile import CompileOptions, compile_spec, trigger
 from mitlc.errors import MitlError
+from mitlc.petri.compile import CompileOptions, compile_spec, trigger
 from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -30,7 +30,7 @@ def test_net_matches_appendix_c(name: str) -> None:
     assert sorted(net.place_names) == sorted(want["places"])
     order = [net.place_index(p) for p in want["places"]]
     got_rows = Counter((tuple(int(v) for v in net.D[t, order]), str(tr.guard)) for t, tr in enumerate(net.transitions))
-    want_rows = Counter((tuple(row), guard) for row, guard in zip(want["D"], want["guards"]))
+    want_rows = Counter((tuple(row), guard) for row, guard in zip(want["D"], want["guards"], strict=True))
     assert got_rows == want_rows
     assert net.M0[order].tolist() == want["M0"]
     # D = D+ - D-, with one input and one output place per transition
@@ -62,11 +62,13 @@ def _thesis_reward(name: str, p, pt) -> np.ndarray:
     if name == "p4_alternate":  # (4-17)
         region = ["p_kappa", "p_upsilon", "p_psi", "p_none_kappa_upsilon_psi"]
         others = lambda f, x: sum(f(r) for r in region if r != x)  # noqa: E731
-        return np.minimum.reduce([
-            5 * (1 + pt("p_kappa")) * pt("p_tau_kappa") * (p("p_kappa") - others(p, "p_kappa")),
-            5 * (1 + pt("p_upsilon")) * pt("p_tau_upsilon") * (p("p_upsilon") - others(p, "p_upsilon")),
-            25 * (1 + others(pt, "p_psi")) * (others(p, "p_psi") - p("p_psi")),
-        ])
+        return np.minimum.reduce(
+            [
+                5 * (1 + pt("p_kappa")) * pt("p_tau_kappa") * (p("p_kappa") - others(p, "p_kappa")),
+                5 * (1 + pt("p_upsilon")) * pt("p_tau_upsilon") * (p("p_upsilon") - others(p, "p_upsilon")),
+                25 * (1 + others(pt, "p_psi")) * (others(p, "p_psi") - p("p_psi")),
+            ]
+        )
     if name == "p5_timed_visit":  # (4-18)
         return (
             2 * p("p_tau<=1") * (p("p_not_kappa") - p("p_kappa"))
@@ -122,9 +124,7 @@ def test_state_groups_follow_disjointness() -> None:
 
 
 def spec_with(formula: str, props: str | None = None) -> str:
-    props = props or (
-        "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
-    )
+    props = props or ("prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n")
     return f"{props}formula {formula}\n"
 
 
@@ -153,7 +153,9 @@ def test_timed_eventually_window() -> None:
     rs = compile_spec(parse_spec(spec_with("F[1,2] a")))
     net = rs.net
     assert [p.name for p in net.places if net.subnets[p.subnet].role == "timeline"] == [
-        "p_tau<1", "p_1<=tau<=2", "p_tau>2"
+        "p_tau<1",
+        "p_1<=tau<=2",
+        "p_tau>2",
     ]
     (t,) = [t for t in net.transitions if net.subnets[t.subnet].role == "eventually"]
     assert str(t.guard) == "a & 1 <= tau <= 2"

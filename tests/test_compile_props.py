@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import strategies
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import strategies
-
-from mitlc.spec import ast as A
 from mitlc.petri.compile import compile_spec
+from mitlc.spec import ast as A
 from mitlc.spec.parse import parse_formula, parse_spec
 
 PROPS = "prop a = x < 0\nprop b = x > 1\nprop c = y < 0\nprop d = 0 < x < 1 and y > 2\n"
@@ -24,7 +23,7 @@ def formulas(depth: int = 6) -> st.SearchStrategy[A.Formula]:
 
 def subnet_invariants(net) -> None:
     """Every sub-net holds one token, initially and after any firing."""
-    for s_idx, sub in enumerate(net.subnets):
+    for _s_idx, sub in enumerate(net.subnets):
         assert int(net.M0[list(sub.places)].sum()) == 1
         for t in sub.transitions:
             row = net.D[t]

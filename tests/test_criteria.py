@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mitlc.hybrid.criteria import DEFAULT_SETTLING_BAND, check, measure
 from mitlc.errors import InputError
-from mitlc.spec.parse import parse_spec
+from mitlc.hybrid.criteria import DEFAULT_SETTLING_BAND, check, measure
 from mitlc.spec.model import Requirement
+from mitlc.spec.parse import parse_spec
 
 
 def approx(x):
@@ -62,11 +62,13 @@ def test_zero_step_has_no_overshoot_and_no_rise_time():
 
 
 def test_vectorised_over_runs_equals_one_by_one():
-    rows = np.array([
-        np.linspace(-1.0, 0.0, 11),
-        [-1.0, -0.8, -0.4, 0.0, 0.1, 0.02, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [0.5, 0.45, 0.3, 0.1, 0.0, -0.01, 0.0, 0.0, 0.0, 0.0, 0.005],
-    ])
+    rows = np.array(
+        [
+            np.linspace(-1.0, 0.0, 11),
+            [-1.0, -0.8, -0.4, 0.0, 0.1, 0.02, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [0.5, 0.45, 0.3, 0.1, 0.0, -0.01, 0.0, 0.0, 0.0, 0.0, 0.005],
+        ]
+    )
     both = measure(rows, 0.1)
     for i, row in enumerate(rows):
         one = measure(row, 0.1)
@@ -75,10 +77,12 @@ def test_vectorised_over_runs_equals_one_by_one():
 
 
 def test_check_against_requirements_and_spec():
-    q = np.array([
-        np.linspace(-1.0, 0.0, 11),                                 # t_r 0.8, no overshoot
-        [-1.0, -0.8, -0.4, 0.0, 0.1, 0.02, 0.0, 0.0, 0.0, 0.0, 0.0],  # t_r 0.225, M_p 0.1
-    ])
+    q = np.array(
+        [
+            np.linspace(-1.0, 0.0, 11),  # t_r 0.8, no overshoot
+            [-1.0, -0.8, -0.4, 0.0, 0.1, 0.02, 0.0, 0.0, 0.0, 0.0, 0.0],  # t_r 0.225, M_p 0.1
+        ]
+    )
     spec = parse_spec(
         "plant mass-damper\ninit q in [-1, -0.5], qdot = 0\nsetpoint 0\n"
         "require overshoot <= 0\nrequire rise_time in [0.6, 0.8]\n"
@@ -90,19 +94,27 @@ def test_check_against_requirements_and_spec():
     np.testing.assert_array_equal(v.passed["settling_time"], [True, True])
     np.testing.assert_array_equal(v.passed["steady_state_error"], [True, True])
     np.testing.assert_array_equal(v.all, [True, False])
-    assert v.rates() == {"overshoot": 0.5, "rise_time": 0.5, "settling_time": 1.0,
-                         "steady_state_error": 1.0, "all": 0.5}
+    assert v.rates() == {
+        "overshoot": 0.5,
+        "rise_time": 0.5,
+        "settling_time": 1.0,
+        "steady_state_error": 1.0,
+        "all": 0.5,
+    }
     # settling band 0.05 of the step: the ramp leaves it at 0.95 s
     assert v.measured["settling_time"][0] == approx(0.95)
     loose = check([Requirement("overshoot", 0.0, 0.1)], q, 0.1, setpoint=0.0)
     np.testing.assert_array_equal(loose.passed["overshoot"], [True, True])  # 0.1 <= 0.1 (with tolerance)
 
 
-@pytest.mark.parametrize("q, dt, message", [
-    (np.array([1.0]), 0.1, "at least 2 samples"),
-    (np.array([0.0, np.nan]), 0.1, "NaN"),
-    (np.array([0.0, 1.0]), 0.0, "sample time"),
-])
+@pytest.mark.parametrize(
+    "q, dt, message",
+    [
+        (np.array([1.0]), 0.1, "at least 2 samples"),
+        (np.array([0.0, np.nan]), 0.1, "NaN"),
+        (np.array([0.0, 1.0]), 0.0, "sample time"),
+    ],
+)
 def test_bad_input(q, dt, message):
     with pytest.raises(InputError, match=message):
         measure(q, dt)

@@ -30,7 +30,10 @@ TESTED = {"compile_and_render.py", "wrap_pendulum_v1.py", "train_sb3.py", "train
 def run_example(name: str, *args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, str(EXAMPLES / name), *args],
-        cwd=cwd, capture_output=True, text=True, timeout=timeout,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
         env={**os.environ, "SDL_VIDEODRIVER": "dummy"},
     )
 
@@ -96,8 +99,13 @@ def test_wrap_pendulum_v1(tmp_path: Path) -> None:
 @pytest.mark.skipif(not HAS_GYM, reason="needs the gym extra")
 def test_wrap_pendulum_v1_box_and_timed_spec(tmp_path: Path) -> None:
     r = run_example(
-        "wrap_pendulum_v1.py", str(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"),
-        "--seed", "4", "--marking-obs", "box", cwd=tmp_path,
+        "wrap_pendulum_v1.py",
+        str(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"),
+        "--seed",
+        "4",
+        "--marking-obs",
+        "box",
+        cwd=tmp_path,
     )
     assert r.returncode == 0, r.stderr
     steps = [line for line in r.stdout.splitlines() if line.startswith("tau ")]
@@ -114,12 +122,24 @@ def test_train_pendulum(tmp_path: Path) -> None:
     """The example's numbers are the trainer's: recomputed here with the same seed."""
     import numpy as np
 
-    from mitlc.monitor.offline import monitor
     from mitlc.learn.sacpn import Sacpn, SacpnSettings
+    from mitlc.monitor.offline import monitor
 
     out = tmp_path / "out"
-    r = run_example("train_pendulum.py", "--trials", "300", "--runs", "2", "--report", "3", "--seed", "7",
-                    "--out", str(out), cwd=tmp_path)
+    r = run_example(
+        "train_pendulum.py",
+        "--trials",
+        "300",
+        "--runs",
+        "2",
+        "--report",
+        "3",
+        "--seed",
+        "7",
+        "--out",
+        str(out),
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     assert lines[0] == "spec p1_swing_up.mitl: F G kappa"
@@ -133,8 +153,9 @@ def test_train_pendulum(tmp_path: Path) -> None:
     rollout = agent.rollout(agent.evaluation_states())
     verdict = monitor(rs.spec, rollout.states, rollout.dt)
     for run in range(2):
-        assert lines[5 + run].startswith(f"run {run}: greedy return {rollout.returns[run]:+8.2f}, "
-                                         f"robustness {verdict.robustness[run]:+.3f}, ")
+        assert lines[5 + run].startswith(
+            f"run {run}: greedy return {rollout.returns[run]:+8.2f}, robustness {verdict.robustness[run]:+.3f}, "
+        )
     assert lines[7] == f"satisfied {int(verdict.satisfied.sum())}/2"
     with np.load(out / "rollout.npz") as saved:
         np.testing.assert_array_equal(saved["states"], rollout.states)
@@ -175,8 +196,10 @@ def test_python_md_examples_run(monkeypatch) -> None:
     monkeypatch.chdir(ROOT)
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
     result = doctest.testfile(
-        str(ROOT / "docs" / "python.md"), module_relative=False,
-        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE, verbose=False,
+        str(ROOT / "docs" / "python.md"),
+        module_relative=False,
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+        verbose=False,
     )
     assert result.failed == 0 and result.attempted >= 40
 
@@ -211,8 +234,15 @@ def test_compile_md_shows_real_output(tmp_path: Path) -> None:
     for cmd, expected in commands:
         if not HAS_DOT and ("--format svg" in cmd or "--format png -o" in cmd):
             continue
-        r = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                           stderr=subprocess.STDOUT, text=True, timeout=60)
+        r = subprocess.run(
+            ["bash", "-c", cmd],
+            cwd=tmp_path,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            timeout=60,
+        )
         got = r.stdout if r.stdout.endswith("\n") or not r.stdout else r.stdout + "\n"
         assert got == expected, f"docs/commands/compile.md is out of date for: {cmd}"
         formats |= {part.split()[0] for part in cmd.split("--format ")[1:]}

@@ -51,7 +51,7 @@ def expected_net(rs):
                 arcs[(pname, tname, int(net.D_minus[t, p]))] += 1
             if net.D_plus[t, p]:
                 arcs[(tname, pname, int(net.D_plus[t, p]))] += 1
-    m0 = {name: int(v) for name, v in zip(net.place_names, net.M0) if v}
+    m0 = {name: int(v) for name, v in zip(net.place_names, net.M0, strict=True) if v}
     return places, transitions, arcs, m0
 
 
@@ -103,7 +103,8 @@ def test_pnml_of_problem_2_by_hand(tmp_path: Path) -> None:
     assert places == {"p_kappa", "p_psi", "p_none_kappa_psi"}
     moves = {  # place -> transition -> place
         (a.source.properties[PLACE_NAME_TAG], b.target.properties[PLACE_NAME_TAG])
-        for a in net.arcs for b in net.arcs
+        for a in net.arcs
+        for b in net.arcs
         if a.source in net.places and a.target is b.source
     }
     assert moves == {(p, q) for p in places for q in places if p != q}
@@ -129,7 +130,11 @@ def test_networkx_is_bipartite_with_documented_attributes(spec_path: Path, viola
     assert all((u in places) != (v in places) for u, v in g.edges)  # arcs join a place and a transition
     for i, p in enumerate(net.places):
         assert g.nodes[p.name] == {
-            "bipartite": 0, "kind": p.kind, "tokens": int(net.M0[i]), "subnet": p.subnet, "label": p.label,
+            "bipartite": 0,
+            "kind": p.kind,
+            "tokens": int(net.M0[i]),
+            "subnet": p.subnet,
+            "label": p.label,
         }
     for t in net.transitions:
         assert g.nodes[t.name] == {"bipartite": 1, "guard": str(t.guard), "subnet": t.subnet}

@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 import pytest
-
 from golden import CASES, GOLDEN, VOLATILE, run_case
 
 RTOL = 1e-9

@@ -15,11 +15,11 @@ import pytest
 gym = pytest.importorskip("gymnasium", reason="the gym extra is not installed: pip install '.[test]'")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.errors import InputError  # noqa: E402
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
-from mitlc.spec.parse import load_spec, parse_spec  # noqa: E402
 from mitlc.learn.runtime import NetRuntime  # noqa: E402
+from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
+from mitlc.spec.parse import load_spec, parse_spec  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SPECS = ROOT / "specs" / "pendulum"
@@ -116,7 +116,7 @@ def test_200_steps_of_pendulum_v1_equal_the_runtime() -> None:
     by_hand = (1.0 + kappa[:-1]) * np.where(kappa[1:], 1.0, -1.0)
     np.testing.assert_array_equal(rewards, by_hand)
     values, counts = np.unique(rewards, return_counts=True)
-    assert dict(zip(values.tolist(), counts.tolist())) == {-2.0: 4, -1.0: 178, 1.0: 3, 2.0: 15}
+    assert dict(zip(values.tolist(), counts.tolist(), strict=True)) == {-2.0: 4, -1.0: 178, 1.0: 3, 2.0: 15}
     # Pendulum-v1's TimeLimit ends the episode at step 200, and the wrapper passes it on.
     assert ends[-1] == (False, True) and all(e == (False, False) for e in ends[:-1])
     assert [i["tau"] for i in infos[:3]] == [0.0, 0.05, 0.1]
@@ -165,7 +165,7 @@ def test_counting_nets_observe_counts_in_a_box() -> None:
 def test_box_observation_is_obs_then_marking() -> None:
     env = wrapped(P5, marking_obs="box", verdict="off")
     _, observations, _, infos, _ = random_rollout(env, seed=4, steps=30)
-    for o, info in zip(observations, infos):
+    for o, info in zip(observations, infos, strict=True):
         assert o.dtype == np.float32 and o.shape == (8,)
         np.testing.assert_array_equal(o[3:], info["marking"])
         assert o[3:].sum() == 2  # one token in the timeline, one in kappa's region net
@@ -194,7 +194,7 @@ def test_reset_is_deterministic(seed: int) -> None:
     a = random_rollout(wrapped(P5, verdict="off"), seed, 20)
     b = random_rollout(wrapped(P5, verdict="off"), seed, 20)
     assert a[2] == b[2]
-    for ia, ib in zip(a[3], b[3]):
+    for ia, ib in zip(a[3], b[3], strict=True):
         np.testing.assert_array_equal(ia["marking"], ib["marking"])
 
 

@@ -9,18 +9,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.hybrid import compile_requirements
-from mitlc.hybrid.criteria import check
 from mitlc.errors import TrainingError
+from mitlc.hybrid.criteria import check
 from mitlc.learn.hyrl import (
     HANDOVER_SIGMA,
     HybridLearner,
     HyrlSettings,
     brake_bound,
     compose,
-    train_handover,
     evaluate,
     load_learner,
+    train_handover,
     train_hybrid,
 )
 from mitlc.spec.parse import load_spec, parse_spec
@@ -71,7 +70,7 @@ def reference_trials(spec, settings, runs, seed, trials):
                 a_ou = np.exp(-dt / st.noise_tau)
                 for k in range(1, N):
                     noise[k] = a_ou * noise[k - 1] + np.sqrt(1 - a_ou**2) * eps[k]
-            noise *= max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
+            noise *= max(st.sigma_min, st.sigma * st.sigma_decay**trial)
             q0 = x[:, 0].copy()
             mode, t = A.reset(x)
             phi = learner.phi(x, q0, t, 0.0)[0]
@@ -104,12 +103,20 @@ def reference_trials(spec, settings, runs, seed, trials):
     return out_returns, np.array(xis), np.array(thetas)
 
 
-@pytest.mark.parametrize("name,noise_tau,critic_init", [("overshoot", 0.0, "zero"), ("rise_time", 0.0, "constant"),
-                                                       ("overshoot", 0.1, "stay"), ("rise_time", 0.2, "stay")])
+@pytest.mark.parametrize(
+    "name,noise_tau,critic_init",
+    [
+        ("overshoot", 0.0, "zero"),
+        ("rise_time", 0.0, "constant"),
+        ("overshoot", 0.1, "stay"),
+        ("rise_time", 0.2, "stay"),
+    ],
+)
 def test_batched_learner_equals_the_per_run_loop(md_specs, name, noise_tau, critic_init):
     spec = md_specs[name]
-    settings = dataclasses.replace(SHORT, sigma=3.0, sigma_decay=0.8, sigma_min=2.0, noise_tau=noise_tau,
-                                   critic_init=critic_init)
+    settings = dataclasses.replace(
+        SHORT, sigma=3.0, sigma_decay=0.8, sigma_min=2.0, noise_tau=noise_tau, critic_init=critic_init
+    )
     learner = HybridLearner(spec, settings, runs=3, seed=11)
     returns = learner.train(4)
     ref_returns, ref_xi, ref_theta = reference_trials(spec, settings, 3, 11, 4)
@@ -159,8 +166,9 @@ def test_critic_starts_at_the_value_of_the_constant_rewards(md_specs):
 
 def _applied_exploration(noise_tau, trials=40):
     # alpha_a = 0 keeps the policy at 0: the applied input is the exploration itself
-    lrn = HybridLearner(parse_spec(OVERSHOOT), HyrlSettings(noise_tau=noise_tau, sigma=2.0, alpha_a=0.0),
-                        runs=1, seed=4)
+    lrn = HybridLearner(
+        parse_spec(OVERSHOOT), HyrlSettings(noise_tau=noise_tau, sigma=2.0, alpha_a=0.0), runs=1, seed=4
+    )
     seen = []
     orig = lrn.plant.step
 
@@ -348,8 +356,13 @@ def test_composition_runs_each_mode_with_the_policy_learned_for_it(md_specs):
     over.xi[:, over.automaton.index("S"), :] = 0.25
     over.xi[:, over.automaton.index("P"), :] = -0.5
     ctl = compose(md_specs["overshoot_rise_time"], [rise, over])
-    assert ctl.describe() == {"E_tr": "rise_time:E_tr", "E_Mp": "overshoot:E_Mp", "I": "rise_time:I",
-                              "S": "overshoot:S", "P": "overshoot:P"}
+    assert ctl.describe() == {
+        "E_tr": "rise_time:E_tr",
+        "E_Mp": "overshoot:E_Mp",
+        "I": "rise_time:I",
+        "S": "overshoot:S",
+        "P": "overshoot:P",
+    }
     ro = ctl.rollout(np.array([[-1.0, 0.0], [-0.6, 0.0]]))
     expected = {"I": 1.0, "E_tr": 2.5, "E_Mp": -4.0, "S": 0.25, "P": -0.5}
     names = ctl.automaton.names

@@ -7,8 +7,8 @@ import json
 import numpy as np
 from click.testing import CliRunner
 
-from mitlc.learn.hyrl import HyrlSettings, load_learner
 from mitlc.cli.hybrid import automaton, train_hybrid_cli
+from mitlc.learn.hyrl import HyrlSettings, load_learner
 
 
 def test_automaton_text_json_dot(spec_dir, tmp_path):
@@ -41,13 +41,26 @@ def test_automaton_errors_are_one_line_and_exit_2(tmp_path):
 
 def test_train_hybrid_cli_writes_everything(spec_dir, tmp_path, capsys):
     out = tmp_path / "run"
-    m = train_hybrid_cli(spec_dir / "mass_damper" / "overshoot.mitl", runs=2, trials=3, seed=4, out=out,
-                         progress=False, settings=HyrlSettings(trial_s=0.6), n_init=5)
+    m = train_hybrid_cli(
+        spec_dir / "mass_damper" / "overshoot.mitl",
+        runs=2,
+        trials=3,
+        seed=4,
+        out=out,
+        progress=False,
+        settings=HyrlSettings(trial_s=0.6),
+        n_init=5,
+    )
     line = capsys.readouterr().out.strip()
     # q0 in {-1, -0.5, 0, 0.5, 1}: the start at the set-point is reported apart (section 3-3-1)
-    assert line.startswith("2 runs x 3 trials in ") and (
-        f"success rate {m['success_rate']:.2f} (5 initial states per run; "
-        f"{m['success_rate_step_ge_0.1']:.2f} from the 4 at least 0.1 from the set-point); results in {out}") in line
+    assert (
+        line.startswith("2 runs x 3 trials in ")
+        and (
+            f"success rate {m['success_rate']:.2f} (5 initial states per run; "
+            f"{m['success_rate_step_ge_0.1']:.2f} from the 4 at least 0.1 from the set-point); results in {out}"
+        )
+        in line
+    )
     for f in ("metrics.json", "params.npz", "learning_curve.png", "rollout.png"):
         assert (out / f).is_file(), f
     on_disk = json.loads((out / "metrics.json").read_text())
@@ -65,11 +78,11 @@ def test_train_hybrid_cli_writes_everything(spec_dir, tmp_path, capsys):
 def test_train_hybrid_cli_resumes_to_the_same_numbers(spec_dir, tmp_path):
     spec = spec_dir / "mass_damper" / "overshoot.mitl"
     settings = HyrlSettings(trial_s=0.3)
-    straight = train_hybrid_cli(spec, 2, 4, 1, tmp_path / "a", progress=False, settings=settings, n_init=3,
-                                plots=False)
+    straight = train_hybrid_cli(spec, 2, 4, 1, tmp_path / "a", progress=False, settings=settings, n_init=3, plots=False)
     train_hybrid_cli(spec, 2, 2, 1, tmp_path / "b", progress=False, settings=settings, n_init=3, plots=False)
-    resumed = train_hybrid_cli(None, 0, 4, 0, tmp_path / "b", progress=False, n_init=3, plots=False,
-                               resume=tmp_path / "b")
+    resumed = train_hybrid_cli(
+        None, 0, 4, 0, tmp_path / "b", progress=False, n_init=3, plots=False, resume=tmp_path / "b"
+    )
     assert resumed["trials"] == 4 and resumed["returns"] == straight["returns"]
 
 
@@ -78,30 +91,77 @@ def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
 
     d = spec_dir / "mass_damper"
     settings = HyrlSettings(trial_s=0.9)
-    train_hybrid_cli(d / "rise_time.mitl", 2, 2, 0, tmp_path / "rise", progress=False, settings=settings,
-                     n_init=2, plots=False)
-    train_hybrid_cli(d / "overshoot.mitl", 2, 2, 0, tmp_path / "over", progress=False, settings=settings,
-                     n_init=2, plots=False)
+    train_hybrid_cli(
+        d / "rise_time.mitl", 2, 2, 0, tmp_path / "rise", progress=False, settings=settings, n_init=2, plots=False
+    )
+    train_hybrid_cli(
+        d / "overshoot.mitl", 2, 2, 0, tmp_path / "over", progress=False, settings=settings, n_init=2, plots=False
+    )
     plot = tmp_path / "composed.png"
-    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
-                                           "--policy", str(tmp_path / "over"), "--initial-states", "4",
-                                           "--plot", str(plot)])
+    res = CliRunner().invoke(
+        compose_cmd,
+        [
+            str(d / "overshoot_rise_time.mitl"),
+            "--policy",
+            str(tmp_path / "rise"),
+            "--policy",
+            str(tmp_path / "over"),
+            "--initial-states",
+            "4",
+            "--plot",
+            str(plot),
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "mode E_Mp  policy overshoot:E_Mp" in res.output and "mode E_tr  policy rise_time:E_tr" in res.output
     assert res.output.count("initial states succeed") == 2 and plot.read_bytes()[:4] == b"\x89PNG"
     assert "braking at the bound from the states handed over to E_Mp" in res.output
-    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
-                                           "--policy", str(tmp_path / "over"), "--initial-states", "2",
-                                           "--handover-trials", "2"])
+    res = CliRunner().invoke(
+        compose_cmd,
+        [
+            str(d / "overshoot_rise_time.mitl"),
+            "--policy",
+            str(tmp_path / "rise"),
+            "--policy",
+            str(tmp_path / "over"),
+            "--initial-states",
+            "2",
+            "--handover-trials",
+            "2",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "retrained overshoot's modes for 2 trials from the handed-over states, exploring with 2 N" in res.output
     assert res.output.count("initial states succeed") == 2
-    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
-                                           "--policy", str(tmp_path / "over"), "--initial-states", "2",
-                                           "--handover-trials", "2", "--handover-sigma", "0.5"])
+    res = CliRunner().invoke(
+        compose_cmd,
+        [
+            str(d / "overshoot_rise_time.mitl"),
+            "--policy",
+            str(tmp_path / "rise"),
+            "--policy",
+            str(tmp_path / "over"),
+            "--initial-states",
+            "2",
+            "--handover-trials",
+            "2",
+            "--handover-sigma",
+            "0.5",
+        ],
+    )
     assert res.exit_code == 0 and "exploring with 0.5 N" in res.output
-    res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "rise"),
-                                           "--policy", str(tmp_path / "over"), "--handover-sigma", "-1"])
+    res = CliRunner().invoke(
+        compose_cmd,
+        [
+            str(d / "overshoot_rise_time.mitl"),
+            "--policy",
+            str(tmp_path / "rise"),
+            "--policy",
+            str(tmp_path / "over"),
+            "--handover-sigma",
+            "-1",
+        ],
+    )
     assert res.exit_code == 2 and "--handover-sigma" in res.output and "Traceback" not in res.output
     res = CliRunner().invoke(compose_cmd, [str(d / "overshoot_rise_time.mitl"), "--policy", str(tmp_path / "over")])
     assert res.exit_code == 2
@@ -109,10 +169,10 @@ def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
 
 
 def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
+    from mitlc.cli.train import simulate
     from mitlc.hybrid.criteria import measure
     from mitlc.learn.hyrl import compose
     from mitlc.spec.parse import load_spec
-    from mitlc.cli.train import simulate
 
     md = spec_dir / "mass_damper"
     over, rise = tmp_path / "over", tmp_path / "rise"
@@ -138,8 +198,10 @@ def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
 
     combined = md / "overshoot_rise_time.mitl"
     plot = tmp_path / "composed.png"
-    res = runner.invoke(simulate, ["--policy", str(rise), "--policy", str(over), "--spec", str(combined),
-                                   "--rollouts", "3", "--plot", str(plot)])
+    res = runner.invoke(
+        simulate,
+        ["--policy", str(rise), "--policy", str(over), "--spec", str(combined), "--rollouts", "3", "--plot", str(plot)],
+    )
     assert res.exit_code == 0, res.output
     assert "rise_time" in res.output and "overshoot" in res.output and plot.is_file()
     ctl = compose(load_spec(combined), [load_learner(rise / "params.npz"), learner])
@@ -151,7 +213,8 @@ def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
 
     res = runner.invoke(simulate, ["--policy", str(rise), "--policy", str(over)])
     assert res.exit_code == 2 and res.output.strip() == (
-        "--spec: error: name the combined spec to run several HyRL policies on")
+        "--spec: error: name the combined spec to run several HyRL policies on"
+    )
 
 
 def test_train_parses_the_spec_once_fresh_and_resumed(spec_dir, tmp_path, monkeypatch):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 import math
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -15,12 +15,12 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mitlc.spec import ast as A
 from mitlc.cli import main
 from mitlc.errors import CompileError, InputError, SpecError
 from mitlc.monitor.offline import MonitorResult, monitor, offsets, signals, state_columns
-from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 from mitlc.plants.base import wrap_angle
+from mitlc.spec import ast as A
+from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 
 try:
     from tests.strategies import formulas, grid_intervals, state_formulas
@@ -308,7 +308,7 @@ THESIS = {
 }
 
 
-@lru_cache(maxsize=None)
+@cache
 def thesis(name: str):
     return parse_spec("plant pendulum(u_max = 10)\n" + THESIS[name])
 
@@ -329,7 +329,9 @@ def outcome(res: MonitorResult) -> tuple:
 
 
 def same(a: tuple, b: tuple) -> bool:
-    return all((x == y) or (isinstance(x, float) and math.isnan(x) and math.isnan(y)) for x, y in zip(a, b))
+    return all(
+        (x == y) or (isinstance(x, float) and math.isnan(x) and math.isnan(y)) for x, y in zip(a, b, strict=True)
+    )
 
 
 @pytest.mark.parametrize("name", sorted(THESIS))
@@ -480,7 +482,9 @@ def test_undefined_proposition_and_unknown_node() -> None:
 
 
 def test_signals_per_subformula() -> None:
-    s = signals(ABC, {"x": np.array([-1.0, 2.0, -3.0]), "y": np.zeros(3), "z": np.zeros(3)}, 1.0, parse_formula("G F[0,1] a"))
+    s = signals(
+        ABC, {"x": np.array([-1.0, 2.0, -3.0]), "y": np.zeros(3), "z": np.zeros(3)}, 1.0, parse_formula("G F[0,1] a")
+    )
     assert list(s) == ["G F[0,1] a", "F[0,1] a", "a"]
     assert s["F[0,1] a"].tolist() == [[2.0, 2.0, -3.0]]
     assert s["G F[0,1] a"].tolist() == [[-3.0, -3.0, -3.0]]
@@ -645,13 +649,17 @@ def test_long_traces_against_reference(f: A.Formula, seed: int) -> None:
     assert signals(ABC, sig, 0.25, f)[str(f)][0].tolist() == [ref(f, k)[1] for k in range(n)]
 
 
-@pytest.mark.parametrize("text", ["a U b", "a U[1,3] b", "a R(0.5,2] b", "!a W[0,4) b", "G (a -> F[0,1] b)", "b U(2,inf) G !a"])
+@pytest.mark.parametrize(
+    "text", ["a U b", "a U[1,3] b", "a R(0.5,2] b", "!a W[0,4) b", "G (a -> F[0,1] b)", "b U(2,inf) G !a"]
+)
 def test_long_batch_against_reference(text: str) -> None:
     """Several runs longer than the until kernel's block size, each against the reference."""
     f = parse_formula(text)
     rng = np.random.default_rng(7)
     R, n, dt = 3, 150, 0.25
-    sig = {k: rng.choice([-2.0, -1.0, 0.0, 1.0, 2.0], size=(R, n), p=[0.1, 0.2, 0.1, 0.3, 0.3]) for k in ("x", "y", "z")}
+    sig = {
+        k: rng.choice([-2.0, -1.0, 0.0, 1.0, 2.0], size=(R, n), p=[0.1, 0.2, 0.1, 0.3, 0.3]) for k in ("x", "y", "z")
+    }
     res = monitor(ABC, sig, dt, f)
     rob = signals(ABC, sig, dt, f)[text]
     for r in range(R):
@@ -679,7 +687,7 @@ def test_round_trip(f: A.Formula) -> None:
 
 # ------------------------------------------------------------ mitlc check
 
-P5_SPEC = (ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl")
+P5_SPEC = ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"
 
 
 @pytest.fixture

@@ -8,19 +8,18 @@ marked exactly when the monitor says the part was met or failed.
 from __future__ import annotations
 
 import numpy as np
+import strategies
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import strategies
-from mitlc.spec import ast as A
-from mitlc.petri.compile import CompileOptions, compile_spec
-from mitlc.monitor.offline import monitor
-from mitlc.spec.parse import parse_spec
 from mitlc.learn.runtime import NetRuntime
+from mitlc.monitor.offline import monitor
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.spec import ast as A
+from mitlc.spec.parse import parse_spec
 
 DT, N = 0.5, 12
-SPEC = (f"plant pendulum(dt = {DT})\nhorizon {N * DT}\n"
-        "prop a = q > 0\nprop c = qdot > 0\nformula {formula}\n")
+SPEC = f"plant pendulum(dt = {DT})\nhorizon {N * DT}\nprop a = q > 0\nprop c = qdot > 0\nformula {{formula}}\n"
 
 
 def run_net(rs, x: np.ndarray) -> np.ndarray:
@@ -40,7 +39,7 @@ signs = st.lists(st.booleans(), min_size=N + 1, max_size=N + 1)
 
 
 def trace(a: list[bool], c: list[bool]) -> np.ndarray:
-    return np.array([[[1.0 if ai else -1.0, 1.0 if ci else -1.0] for ai, ci in zip(a, c)]])
+    return np.array([[[1.0 if ai else -1.0, 1.0 if ci else -1.0] for ai, ci in zip(a, c, strict=True)]])
 
 
 finite = strategies.grid_intervals(DT, N, unbounded=False)

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mitlc.spec import ast as A
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
+from mitlc.spec import ast as A
 from mitlc.spec.parse import MAX_DEPTH, load_spec, parse_formula, parse_predicate, parse_spec
 
 a, b, c, d = (A.Atom(n) for n in "abcd")
@@ -208,8 +208,11 @@ def test_fuzz_arbitrary_text(text: str) -> None:
 @settings(max_examples=400, deadline=None)
 @given(
     st.lists(
-        st.tuples(st.integers(0, len(VALID) - 1), st.sampled_from(["del", "ins", "rep"]),
-                  st.sampled_from(list("()[],:!&|<>-=*/. \n#FGURW0123456789aqkp") + ["inf", "prop", "U[", "¬", "\t"])),
+        st.tuples(
+            st.integers(0, len(VALID) - 1),
+            st.sampled_from(["del", "ins", "rep"]),
+            st.sampled_from(list("()[],:!&|<>-=*/. \n#FGURW0123456789aqkp") + ["inf", "prop", "U[", "¬", "\t"]),
+        ),
         min_size=1,
         max_size=4,
     )
@@ -219,11 +222,11 @@ def test_fuzz_mutated_specs(mutations) -> None:
     for pos, op, piece in mutations:
         pos = min(pos, len(text))
         if op == "del":
-            text = text[:pos] + text[pos + 1:]
+            text = text[:pos] + text[pos + 1 :]
         elif op == "ins":
             text = text[:pos] + piece + text[pos:]
         else:
-            text = text[:pos] + piece + text[pos + len(piece):]
+            text = text[:pos] + piece + text[pos + len(piece) :]
     try:
         parse_spec(text, "m.mitl")
     except MitlError as err:

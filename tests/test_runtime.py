@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from mitlc.petri.compile import CompileOptions, compile_spec
-from mitlc.spec.parse import parse_spec
-from mitlc.plants.base import PLANTS, wrap_angle
 from mitlc.learn.runtime import NetRuntime
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.plants.base import PLANTS, wrap_angle
+from mitlc.spec.parse import parse_spec
 
 P1 = """
 plant pendulum(u_max = 3)
@@ -61,7 +61,7 @@ def runtime(text: str, conjunction: str = "literal") -> NetRuntime:
 
 def states(qs, qdots=None) -> np.ndarray:
     qdots = [0.0] * len(qs) if qdots is None else qdots
-    return np.array([[q, qd] for q, qd in zip(qs, qdots)], dtype=float)
+    return np.array([[q, qd] for q, qd in zip(qs, qdots, strict=True)], dtype=float)
 
 
 def trace(rt: NetRuntime, x0: float, steps: list[tuple[float, float]], qdot0: float = 0.0):
@@ -115,7 +115,12 @@ def test_p3_two_region_nets_move_together():
 def test_p4_recurrence_and_gated_min(conjunction, expected):
     rt = runtime(P4, conjunction)
     assert rt.net.place_names == (
-        "p_tau_kappa", "p_tau_upsilon", "p_kappa", "p_upsilon", "p_psi", "p_none_kappa_upsilon_psi",
+        "p_tau_kappa",
+        "p_tau_upsilon",
+        "p_kappa",
+        "p_upsilon",
+        "p_psi",
+        "p_none_kappa_upsilon_psi",
     )
     marks, rewards = trace(rt, 0.0, [(0.03, -1.5), (0.06, -1.5), (0.09, 1.5), (0.12, 3.0)])
     assert marks == [
@@ -289,8 +294,8 @@ def test_pendulum_input_saturates_and_velocity_is_bounded():
 
 
 def test_compiled_predicates_agree_with_the_reference():
-    from mitlc.spec import predicates as Pr
     from mitlc.learn.runtime import compile_predicate
+    from mitlc.spec import predicates as Pr
 
     spec = parse_spec(
         "plant pendulum\nprop a = -pi < q < -pi + 0.5 or pi - 0.5 < q < pi\n"

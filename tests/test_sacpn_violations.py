@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.petri.compile import CompileOptions, compile_spec
-from mitlc.monitor.offline import monitor
-from mitlc.spec.parse import load_spec
 from mitlc.learn.sacpn import Sacpn, SacpnSettings
+from mitlc.monitor.offline import monitor
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.spec.parse import load_spec
 
 SPECS = Path(__file__).resolve().parent.parent / "specs" / "pendulum"
 
@@ -33,7 +33,7 @@ def test_known_penalty_value_cancels_the_penalty_after_a_violation() -> None:
     G = agent._pen_left
     assert G[n] == 0.0 and G[n - 1] == 1.0
     assert np.allclose(G[:-1], 1.0 + g * G[1:])
-    assert G[0] == pytest.approx((1 - g ** n) / (1 - g))
+    assert G[0] == pytest.approx((1 - g**n) / (1 - g))
     charge, pen, c = agent.runtime.tables.charge, agent._pen, rs.penalty
     assert c == 5.0
     both = np.flatnonzero(pen > 0)

@@ -18,11 +18,11 @@ import pytest
 from click.testing import CliRunner
 
 from mitlc.cli import main
-from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.errors import InputError
-from mitlc.monitor.offline import monitor
-from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 from mitlc.learn.sacpn import Sacpn, SacpnSettings
+from mitlc.monitor.offline import monitor
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 from mitlc.sweep import (
     LocalBackend,
     RayBackend,
@@ -61,14 +61,19 @@ def csv_rows(path: Path) -> list[dict]:
 # ---------------------------------------------------------------- weight names
 
 
-@pytest.mark.parametrize("spec_file, expected", [
-    ("p1_swing_up.mitl", []),
-    ("p2_avoid.mitl", [("psi", 10.0, "10 * G !psi")]),
-    ("p3_avoid_speed_limit.mitl", [("psi", 10.0, "10 * G !psi"), ("upsilon", 10.0, "10 * G upsilon")]),
-    ("p4_alternate.mitl", [("kappa", 5.0, "5 * G F kappa"), ("upsilon", 5.0, "5 * G F upsilon"),
-                           ("psi", 25.0, "25 * G !psi")]),
-    ("p5_timed_visit.mitl", [("kappa.1", 2.0, "2 * !kappa"), ("kappa.2", 3.0, "3 * kappa")]),
-])
+@pytest.mark.parametrize(
+    "spec_file, expected",
+    [
+        ("p1_swing_up.mitl", []),
+        ("p2_avoid.mitl", [("psi", 10.0, "10 * G !psi")]),
+        ("p3_avoid_speed_limit.mitl", [("psi", 10.0, "10 * G !psi"), ("upsilon", 10.0, "10 * G upsilon")]),
+        (
+            "p4_alternate.mitl",
+            [("kappa", 5.0, "5 * G F kappa"), ("upsilon", 5.0, "5 * G F upsilon"), ("psi", 25.0, "25 * G !psi")],
+        ),
+        ("p5_timed_visit.mitl", [("kappa.1", 2.0, "2 * !kappa"), ("kappa.2", 3.0, "3 * kappa")]),
+    ],
+)
 def test_weight_names_of_the_thesis_specs(spec_file, expected):
     sites = weight_sites(load_spec(ROOT / "specs" / "pendulum" / spec_file).formula)
     assert [(s.name, s.value, s.text) for s in sites] == expected
@@ -78,8 +83,7 @@ def test_weight_names_of_the_thesis_specs(spec_file, expected):
 
 def test_weight_names_nested_and_constant():
     f = parse_formula("2 * (F a & 3 * G b) | 4 * G (a & b) | 0.5 * true")
-    assert [(s.name, s.value) for s in weight_sites(f)] == [("a_b.1", 2.0), ("b", 3.0), ("a_b.2", 4.0),
-                                                             ("const", 0.5)]
+    assert [(s.name, s.value) for s in weight_sites(f)] == [("a_b.1", 2.0), ("b", 3.0), ("a_b.2", 4.0), ("const", 0.5)]
 
 
 def test_set_weights_rebuilds_only_the_path_to_the_weight():
@@ -109,11 +113,20 @@ def test_with_weights_equals_editing_the_spec_text():
 
 def test_grid_values_of_every_kind():
     spec = load_spec(P2)
-    axes = parse_grid([
-        "sigma=1,2.5", "rbf=8x8,10x10", "trial_s=none,2", "bootstrap_timeout=true,false",
-        "feature_bounds=qdot:-20:20,qdot:-30:30+q:-3:3", "mask=current,next", "weight.psi=1,3",
-        "option.violations=off,permanent", "option.conjunction=active",
-    ], spec)
+    axes = parse_grid(
+        [
+            "sigma=1,2.5",
+            "rbf=8x8,10x10",
+            "trial_s=none,2",
+            "bootstrap_timeout=true,false",
+            "feature_bounds=qdot:-20:20,qdot:-30:30+q:-3:3",
+            "mask=current,next",
+            "weight.psi=1,3",
+            "option.violations=off,permanent",
+            "option.conjunction=active",
+        ],
+        spec,
+    )
     got = {a.name: (a.kind, a.key, a.values, a.labels) for a in axes}
     assert got["sigma"] == ("setting", "sigma", (1.0, 2.5), ("1", "2.5"))
     assert got["rbf"][2:] == (((8, 8), (10, 10)), ("8x8", "10x10"))
@@ -136,25 +149,28 @@ def test_every_trainer_setting_can_be_swept_and_its_default_round_trips():
         assert parsers[f.name](format_value(value)) == value, f.name
 
 
-@pytest.mark.parametrize("item, message", [
-    ("sigm=1,2", "unknown grid name 'sigm'"),
-    ("sigma", "'sigma' is not NAME=VALUE"),
-    ("sigma=1,,2", "empty value"),
-    ("sigma=1,1.0", "sigma: value 1 is given twice"),
-    ("sigma=one", "sigma=one: 'one' is not a number"),
-    ("sigma=nan", "'nan' is not a finite number"),
-    ("sigma=-1", "sigma=-1: must be non-negative"),
-    ("gamma=1.5", "gamma=1.5: gamma must be in [0, 1]"),
-    ("mask=sideways", "mask=sideways: unknown mask 'sideways'"),
-    ("rbf=3x3x3", "rbf=3x3x3: rbf has 3 entries, the plant has 2 state variables"),
-    ("rbf=ten", "'ten' is not a grid size"),
-    ("bootstrap_timeout=maybe", "'maybe' is not true or false"),
-    ("feature_bounds=qdot:-20", "'qdot:-20' is not a range"),
-    ("weight.kappa=1", "the formula has no weight 'weight.kappa' (weights: weight.psi)"),
-    ("weight.psi=0", "weight.psi=0: a weight must be positive"),
-    ("option.colour=red", "unknown option 'option.colour'"),
-    ("option.violations=sometimes", "must be one of off, permanent, counted"),
-])
+@pytest.mark.parametrize(
+    "item, message",
+    [
+        ("sigm=1,2", "unknown grid name 'sigm'"),
+        ("sigma", "'sigma' is not NAME=VALUE"),
+        ("sigma=1,,2", "empty value"),
+        ("sigma=1,1.0", "sigma: value 1 is given twice"),
+        ("sigma=one", "sigma=one: 'one' is not a number"),
+        ("sigma=nan", "'nan' is not a finite number"),
+        ("sigma=-1", "sigma=-1: must be non-negative"),
+        ("gamma=1.5", "gamma=1.5: gamma must be in [0, 1]"),
+        ("mask=sideways", "mask=sideways: unknown mask 'sideways'"),
+        ("rbf=3x3x3", "rbf=3x3x3: rbf has 3 entries, the plant has 2 state variables"),
+        ("rbf=ten", "'ten' is not a grid size"),
+        ("bootstrap_timeout=maybe", "'maybe' is not true or false"),
+        ("feature_bounds=qdot:-20", "'qdot:-20' is not a range"),
+        ("weight.kappa=1", "the formula has no weight 'weight.kappa' (weights: weight.psi)"),
+        ("weight.psi=0", "weight.psi=0: a weight must be positive"),
+        ("option.colour=red", "unknown option 'option.colour'"),
+        ("option.violations=sometimes", "must be one of off, permanent, counted"),
+    ],
+)
 def test_bad_grid_items_name_the_option(item, message):
     with pytest.raises(InputError) as err:
         plan_sweep(load_spec(P2), [item], [0], runs=1, trials=1)
@@ -203,12 +219,12 @@ def test_task_key_depends_on_the_configuration_not_on_how_the_grid_is_written(sh
 
 def test_run_task_is_the_trainer_and_the_monitor(short_spec):
     """A task equals training by hand on the spec with its weight edited in the text."""
-    plan = plan_sweep(load_spec(short_spec), ["sigma=2", "weight.psi=3", "option.violations=permanent"],
-                      [5], runs=3, trials=6)
+    plan = plan_sweep(
+        load_spec(short_spec), ["sigma=2", "weight.psi=3", "option.violations=permanent"], [5], runs=3, trials=6
+    )
     record = run_task(plan.tasks[0].payload)
     spec = parse_spec(short_spec.read_text().replace("10 * G !psi", "3 * G !psi"))
-    agent = Sacpn(compile_spec(spec, CompileOptions(violations="permanent")), SacpnSettings(sigma=2.0),
-                  runs=3, seed=5)
+    agent = Sacpn(compile_spec(spec, CompileOptions(violations="permanent")), SacpnSettings(sigma=2.0), runs=3, seed=5)
     agent.train(6)
     ro = agent.rollout(agent.evaluation_states())
     assert record["final_return"] == agent.returns[:, -10:].mean()
@@ -235,16 +251,25 @@ def test_diverging_training_is_a_result_not_a_crash(short_spec):
 
 def test_store_never_counts_a_task_twice_and_refuses_another_sweep(short_spec, tmp_path):
     plan = plan_sweep(load_spec(short_spec), ["sigma=1,3"], [0], 2, 3)
-    rec = {"task": plan.tasks[0].key, "seed": 0, **{k: plan.tasks[0].payload[k] for k in
-                                                     ("settings", "weights", "options")},
-           "success_rate": 0.5, "final_return": -1.0, "greedy_return": -2.0, "error": None, "wall_s": 0.1,
-           "host": "h"}
+    rec = {
+        "task": plan.tasks[0].key,
+        "seed": 0,
+        **{k: plan.tasks[0].payload[k] for k in ("settings", "weights", "options")},
+        "success_rate": 0.5,
+        "final_return": -1.0,
+        "greedy_return": -2.0,
+        "error": None,
+        "wall_s": 0.1,
+        "host": "h",
+    }
     with ResultStore(tmp_path / "o", plan.header, plan.axes) as store:
         assert store.add(rec) is True
         assert store.add({**rec, "success_rate": 1.0}) is False
-        with pytest.raises(InputError, match="another sweep is writing to"):
-            with ResultStore(tmp_path / "o", plan.header, plan.axes):
-                pass
+        with (
+            pytest.raises(InputError, match="another sweep is writing to"),
+            ResultStore(tmp_path / "o", plan.header, plan.axes),
+        ):
+            pass
     rows = csv_rows(tmp_path / "o" / "results.csv")
     assert [(r["task"], r["sigma"], r["success_rate"]) for r in rows] == [(rec["task"], "1", "0.5")]
     other = plan_sweep(load_spec(short_spec), ["sigma=1,3"], [0], 2, 4)
@@ -254,12 +279,16 @@ def test_store_never_counts_a_task_twice_and_refuses_another_sweep(short_spec, t
 
 
 def test_summary_and_heat_map_average_over_seeds(short_spec):
-    plan = plan_sweep(load_spec(short_spec), ["sigma=1,3", "weight.psi=1,10,20", "mask=current,next"],
-                      [0, 1], 2, 3)
+    plan = plan_sweep(load_spec(short_spec), ["sigma=1,3", "weight.psi=1,10,20", "mask=current,next"], [0, 1], 2, 3)
     rates = {}
     for i, t in enumerate(plan.tasks):
-        rates[t.key] = {"success_rate": (i % 5) / 4, "final_return": float(i), "wall_s": 1.0, "error": None,
-                        "failing": {"!psi": i % 3, "F G kappa": 1}}
+        rates[t.key] = {
+            "success_rate": (i % 5) / 4,
+            "final_return": float(i),
+            "wall_s": 1.0,
+            "error": None,
+            "failing": {"!psi": i % 3, "F G kappa": 1},
+        }
     missing = plan.tasks[-1]
     del rates[missing.key]
     rows = summarize(plan, rates)
@@ -291,14 +320,27 @@ class _InstantBackend:
         for i, p in enumerate(payloads):
             if i == self.interrupt_after:
                 raise KeyboardInterrupt
-            yield p, {"task": p["key"], "seed": p["seed"], "settings": p["settings"], "weights": p["weights"],
-                      "options": p["options"], "success_rate": i / 1000, "final_return": -1.0,
-                      "greedy_return": -1.0, "failing": {}, "error": None, "wall_s": 0.0, "cpu_s": 0.0,
-                      "host": "h"}
+            yield (
+                p,
+                {
+                    "task": p["key"],
+                    "seed": p["seed"],
+                    "settings": p["settings"],
+                    "weights": p["weights"],
+                    "options": p["options"],
+                    "success_rate": i / 1000,
+                    "final_return": -1.0,
+                    "greedy_return": -1.0,
+                    "failing": {},
+                    "error": None,
+                    "wall_s": 0.0,
+                    "cpu_s": 0.0,
+                    "host": "h",
+                },
+            )
 
 
-def test_rewrites_are_coalesced_when_results_come_faster_than_the_files_are_written(short_spec, tmp_path,
-                                                                                      monkeypatch):
+def test_rewrites_are_coalesced_when_results_come_faster_than_the_files_are_written(short_spec, tmp_path, monkeypatch):
     import mitlc.sweep.run as sweep_mod
 
     plan = plan_sweep(load_spec(short_spec), ["weight.psi=" + ",".join(str(w) for w in range(1, 201))], [0], 2, 3)
@@ -348,10 +390,34 @@ def test_ray_address_joins_a_running_cluster(short_spec, tmp_path):
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="WARNING")
     try:
         address = ray.get_runtime_context().gcs_address
-        proc = subprocess.run([sys.executable, "-m", "mitlc", "sweep", str(short_spec), "--grid", "sigma=1,3",
-                               "--seeds", "1", "--runs", "2", "--trials", "4", "--backend", "ray", "--address",
-                               address, "--out", str(tmp_path / "o"), "-q", "--no-plot"],
-                              capture_output=True, text=True, timeout=300)
+        proc = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "mitlc",
+                "sweep",
+                str(short_spec),
+                "--grid",
+                "sigma=1,3",
+                "--seeds",
+                "1",
+                "--runs",
+                "2",
+                "--trials",
+                "4",
+                "--backend",
+                "ray",
+                "--address",
+                address,
+                "--out",
+                str(tmp_path / "o"),
+                "-q",
+                "--no-plot",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         assert ray.is_initialized()  # the sweep disconnected; the cluster it joined is still up
     finally:
         ray.shutdown()
@@ -365,8 +431,20 @@ def test_ray_address_joins_a_running_cluster(short_spec, tmp_path):
 
 def test_ray_backend_missing_is_a_clear_error(short_spec, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray raises ImportError
-    res = run("sweep", short_spec, "--grid", "sigma=1,3", "--backend", "ray", "--runs", 1, "--trials", 1,
-              "--out", tmp_path / "o")
+    res = run(
+        "sweep",
+        short_spec,
+        "--grid",
+        "sigma=1,3",
+        "--backend",
+        "ray",
+        "--runs",
+        1,
+        "--trials",
+        1,
+        "--out",
+        tmp_path / "o",
+    )
     assert res.exit_code == 2
     assert "--backend: error: the ray backend needs Ray" in res.output
     assert "pip install 'mitlc[ray]'" in res.output
@@ -377,8 +455,26 @@ def test_ray_backend_missing_is_a_clear_error(short_spec, tmp_path, monkeypatch)
 
 
 def _sweep_process(spec: Path, out: Path, *extra: str) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "mitlc", "sweep", str(spec), "--grid", "sigma=1,3", "--grid", "weight.psi=1,10",
-           "--seeds", "1", "--workers", "1", "--out", str(out), "-q", "--no-plot", *extra]
+    cmd = [
+        sys.executable,
+        "-m",
+        "mitlc",
+        "sweep",
+        str(spec),
+        "--grid",
+        "sigma=1,3",
+        "--grid",
+        "weight.psi=1,10",
+        "--seeds",
+        "1",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+        "-q",
+        "--no-plot",
+        *extra,
+    ]
     return subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -407,8 +503,26 @@ def test_killed_sweep_resumes_with_every_task_exactly_once(tmp_path):
         proc.wait()
     first = _records_by_key(out)
     assert 1 <= len(first) < 4, "the sweep finished before it could be killed"
-    res = run("sweep", P2, "--grid", "sigma=1,3", "--grid", "weight.psi=1,10", "--seeds", 1, "--workers", 1,
-              "--runs", 5, "--trials", 150, "--out", out, "-q", "--no-plot")
+    res = run(
+        "sweep",
+        P2,
+        "--grid",
+        "sigma=1,3",
+        "--grid",
+        "weight.psi=1,10",
+        "--seeds",
+        1,
+        "--workers",
+        1,
+        "--runs",
+        5,
+        "--trials",
+        150,
+        "--out",
+        out,
+        "-q",
+        "--no-plot",
+    )
     assert res.exit_code == 0, res.output
     assert f"{4 - len(first)} tasks run" in res.output and f"{len(first)} done earlier" in res.output
     rows = csv_rows(out / "results.csv")
@@ -490,8 +604,25 @@ def test_interrupt_stops_the_workers_at_once_and_exits_130(tmp_path):
 
 def test_cli_sweep_writes_results_summary_and_heat_map_and_resumes(short_spec, tmp_path):
     out = tmp_path / "o"
-    args = ("sweep", short_spec, "--grid", GRID_2X2[0], "--grid", GRID_2X2[1], "--seeds", 2, "--runs", 2,
-            "--trials", 4, "--workers", 1, "--out", out, "-q")
+    args = (
+        "sweep",
+        short_spec,
+        "--grid",
+        GRID_2X2[0],
+        "--grid",
+        GRID_2X2[1],
+        "--seeds",
+        2,
+        "--runs",
+        2,
+        "--trials",
+        4,
+        "--workers",
+        1,
+        "--out",
+        out,
+        "-q",
+    )
     res = run(*args)
     assert res.exit_code == 0, res.output
     assert "8 tasks (4 configurations x 2 seeds, 2 runs x 4 trials each); 0 already in" in res.output
@@ -499,8 +630,20 @@ def test_cli_sweep_writes_results_summary_and_heat_map_and_resumes(short_spec, t
     assert "8 tasks run in" in res.output
     rows = csv_rows(out / "results.csv")
     assert len(rows) == 8
-    assert list(rows[0]) == ["task", "seed", "sigma", "weight.psi", "success_rate", "final_return",
-                             "greedy_return", "failing", "wall_s", "cpu_s", "error", "host"]
+    assert list(rows[0]) == [
+        "task",
+        "seed",
+        "sigma",
+        "weight.psi",
+        "success_rate",
+        "final_return",
+        "greedy_return",
+        "failing",
+        "wall_s",
+        "cpu_s",
+        "error",
+        "host",
+    ]
     data = json.loads((out / "results.json").read_text())
     assert data["header"]["runs"] == 2 and data["header"]["trials"] == 4
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -526,11 +669,14 @@ def test_cli_list_shows_every_weight_option_and_setting():
     assert ["rbf", "10x10"] in lines
 
 
-@pytest.mark.parametrize("args, message", [
-    (("--grid", "sigm=1"), "--grid: error: unknown grid name 'sigm'"),
-    (("--grid", "weight.psi=-2"), "--grid: error: weight.psi=-2: a weight must be positive"),
-    (("--address", "auto"), "--address: error: --address is for --backend ray"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--grid", "sigm=1"), "--grid: error: unknown grid name 'sigm'"),
+        (("--grid", "weight.psi=-2"), "--grid: error: weight.psi=-2: a weight must be positive"),
+        (("--address", "auto"), "--address: error: --address is for --backend ray"),
+    ],
+)
 def test_cli_bad_input_is_one_line_and_exit_2(short_spec, tmp_path, args, message):
     res = run("sweep", short_spec, *args, "--out", tmp_path / "o")
     assert res.exit_code == 2
@@ -540,8 +686,27 @@ def test_cli_bad_input_is_one_line_and_exit_2(short_spec, tmp_path, args, messag
 
 def test_cli_refuses_an_output_directory_of_another_sweep(short_spec, tmp_path):
     out = tmp_path / "o"
-    assert run("sweep", short_spec, "--grid", "sigma=1", "--seeds", 1, "--runs", 2, "--trials", 2, "--workers", 1,
-               "--out", out, "-q", "--no-plot").exit_code == 0
+    assert (
+        run(
+            "sweep",
+            short_spec,
+            "--grid",
+            "sigma=1",
+            "--seeds",
+            1,
+            "--runs",
+            2,
+            "--trials",
+            2,
+            "--workers",
+            1,
+            "--out",
+            out,
+            "-q",
+            "--no-plot",
+        ).exit_code
+        == 0
+    )
     res = run("sweep", short_spec, "--grid", "sigma=1", "--seeds", 1, "--runs", 3, "--trials", 2, "--out", out)
     assert res.exit_code == 2
     assert f"--out: error: {out} holds a sweep with runs 2, not 3" in res.output

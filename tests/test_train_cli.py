@@ -10,6 +10,7 @@ from click.testing import CliRunner
 
 from mitlc.cli import main
 
+
 def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
 
@@ -73,7 +74,9 @@ def test_ctrl_c_writes_a_checkpoint_that_resumes(short_spec, tmp_path, monkeypat
 
 def test_simulate_prints_a_verdict_per_rollout(short_spec, tmp_path):
     out = tmp_path / "pol"
-    assert run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots").exit_code == 0
+    assert (
+        run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots").exit_code == 0
+    )
     res = run("simulate", "--policy", out, "--rollouts", 3)
     assert res.exit_code == 0, res.output
     assert res.output.count("rollout ") == 3
@@ -82,7 +85,8 @@ def test_simulate_prints_a_verdict_per_rollout(short_spec, tmp_path):
     res = run("simulate", "--policy", out, "--policy", out)
     assert res.exit_code == 2
     assert res.output.strip() == (
-        "--policy: error: only HyRL policies (classical criteria) run composed; give one SACPN policy")
+        "--policy: error: only HyRL policies (classical criteria) run composed; give one SACPN policy"
+    )
 
 
 @pytest.mark.parametrize(
@@ -112,22 +116,57 @@ def test_diverging_training_is_a_clean_error(short_spec, tmp_path, monkeypatch):
         return np.zeros(self.runs)
 
     monkeypatch.setattr(sacpn.Sacpn, "_trial", nan_trial)
-    res = CliRunner().invoke(main, ["train", "--spec", str(short_spec), "--runs", "2", "--trials", "3",
-                                    "--out", str(tmp_path / "o"), "-q"])
+    res = CliRunner().invoke(
+        main, ["train", "--spec", str(short_spec), "--runs", "2", "--trials", "3", "--out", str(tmp_path / "o"), "-q"]
+    )
     assert res.exit_code == 2
     assert "diverged" in res.output
 
 
 def test_set_overrides_any_trainer_setting_sacpn_and_hyrl(short_spec, spec_dir, tmp_path):
     out = tmp_path / "sacpn"
-    res = run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots",
-              "--set", "rbf=5x4", "--set", "sigma_frac=0.2", "--set", "bootstrap_timeout=false")
+    res = run(
+        "train",
+        "--spec",
+        short_spec,
+        "--runs",
+        2,
+        "--trials",
+        2,
+        "--out",
+        out,
+        "-q",
+        "--no-plots",
+        "--set",
+        "rbf=5x4",
+        "--set",
+        "sigma_frac=0.2",
+        "--set",
+        "bootstrap_timeout=false",
+    )
     assert res.exit_code == 0, res.output
     s = json.loads((out / "metrics.json").read_text())["settings"]
     assert s["rbf"] == [5, 4] and s["sigma_frac"] == 0.2 and s["bootstrap_timeout"] is False
     out = tmp_path / "hyrl"
-    res = run("train", "--spec", spec_dir / "mass_damper" / "overshoot.mitl", "--runs", 1, "--trials", 1,
-              "--out", out, "-q", "--no-plots", "--set", "alpha_a=0.08", "--set", "rbf=6x6x3", "--set", "q_warp=none")
+    res = run(
+        "train",
+        "--spec",
+        spec_dir / "mass_damper" / "overshoot.mitl",
+        "--runs",
+        1,
+        "--trials",
+        1,
+        "--out",
+        out,
+        "-q",
+        "--no-plots",
+        "--set",
+        "alpha_a=0.08",
+        "--set",
+        "rbf=6x6x3",
+        "--set",
+        "q_warp=none",
+    )
     assert res.exit_code == 0, res.output
     m = json.loads((out / "metrics.json").read_text())
     assert m["settings"]["alpha_a"] == 0.08 and m["settings"]["q_warp"] is None and m["n_features"] == 108
@@ -147,8 +186,23 @@ def test_set_overrides_any_trainer_setting_sacpn_and_hyrl(short_spec, spec_dir, 
 )
 def test_bad_settings_are_one_line_errors_naming_the_option(short_spec, spec_dir, tmp_path, spec, args, message):
     path = short_spec if spec == "short" else spec_dir / "mass_damper" / "overshoot.mitl"
-    res = CliRunner().invoke(main, ["train", "--spec", str(path), "--runs", "1", "--trials", "1", "-q",
-                                    "--no-plots", "--out", str(tmp_path / "o"), *args])
+    res = CliRunner().invoke(
+        main,
+        [
+            "train",
+            "--spec",
+            str(path),
+            "--runs",
+            "1",
+            "--trials",
+            "1",
+            "-q",
+            "--no-plots",
+            "--out",
+            str(tmp_path / "o"),
+            *args,
+        ],
+    )
     assert res.exit_code == 2, res.output
     assert res.output.strip().startswith(message) and len(res.output.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.errors import CompileError
+from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.spec.parse import load_spec, parse_spec
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -79,8 +79,9 @@ def test_counted_counts_separate_violations() -> None:
 
 
 def test_deadlines_of_eventually_and_until() -> None:
-    spec = parse_spec("plant pendulum\nhorizon 3\nprop a = q < 0\nprop b = q > 1\n"
-                      "formula F[0,2] a & F b & (a U[0,1] b)\n")
+    spec = parse_spec(
+        "plant pendulum\nhorizon 3\nprop a = q < 0\nprop b = q > 1\nformula F[0,2] a & F b & (a U[0,1] b)\n"
+    )
     rs = compile_spec(spec, CompileOptions(violations="permanent"))
     guards = {(t.inputs, t.outputs): str(t.guard) for t in rs.net.transitions}
     assert guards[(("p_tau_a",), ("p_late_a",))] == "tau > 2"
@@ -90,8 +91,9 @@ def test_deadlines_of_eventually_and_until() -> None:
 
 
 def test_timed_until_watches_its_phases() -> None:
-    rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"),
-                      CompileOptions(violations="permanent"))
+    rs = compile_spec(
+        load_spec(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"), CompileOptions(violations="permanent")
+    )
     watch = sorted(str(t.guard) for t in rs.net.transitions if rs.net.subnets[t.subnet].role == "violation")
     assert watch == ["!kappa & 1 < tau <= 2", "kappa & tau <= 1", "kappa & tau > 2"]
 
@@ -113,9 +115,9 @@ def test_spec_option() -> None:
 
 
 # ----------------------------------------------------------------- the ordering guarantee
+from mitlc.learn.runtime import NetRuntime  # noqa: E402
 from mitlc.monitor.offline import monitor  # noqa: E402
 from mitlc.spec.parse import parse_formula  # noqa: E402
-from mitlc.learn.runtime import NetRuntime  # noqa: E402
 
 DT, STEPS = 0.03, 100
 
@@ -195,9 +197,9 @@ def test_no_violating_continuation_out_earns_a_satisfying_one(name, formula, q0,
     # every step from the first violation on earns less than any step before a violation
     before = np.concatenate([rewards[i, : first[i]] for i in range(len(x))])
     for i in np.flatnonzero(~verdict):
-        assert rewards[i, first[i]:].max() < before.min()
+        assert rewards[i, first[i] :].max() < before.min()
         # so its rest earns less than the same stretch of any satisfying trial
-        assert rewards[i, first[i]:].sum() < rewards[verdict][:, first[i]:].sum(axis=1).min()
+        assert rewards[i, first[i] :].sum() < rewards[verdict][:, first[i] :].sum(axis=1).min()
 
 
 def test_cutting_through_psi_pays_only_without_the_option() -> None:

@@ -31,8 +31,15 @@ def refresh(page: Path) -> str:
                 in_block = False
                 out.append(line)
             elif in_block and line.startswith("$ "):
-                r = subprocess.run(["bash", "-c", line[2:]], cwd=tmp, env=env, stdout=subprocess.PIPE,
-                                   stderr=subprocess.STDOUT, text=True, timeout=120)
+                r = subprocess.run(
+                    ["bash", "-c", line[2:]],
+                    cwd=tmp,
+                    env=env,
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.STDOUT,
+                    text=True,
+                    timeout=120,
+                )
                 out.append(line)
                 out.extend(r.stdout.rstrip("\n").splitlines() if r.stdout else [])
             elif not in_block:

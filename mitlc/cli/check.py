@@ -19,6 +19,7 @@ from mitlc.monitor.trace import read_trace
 
 __all__ = ["check"]
 
+
 def _finite_or_none(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
@@ -26,8 +27,13 @@ def _finite_or_none(x: float) -> float | None:
 @click.command("check")
 @click.argument("spec", type=click.Path(dir_okay=False))
 @click.argument("trace", type=click.Path(dir_okay=False))
-@click.option("--formula", "formula_text", default=None, metavar="TEXT",
-              help="Check this formula (over the spec's propositions) instead of the spec's.")
+@click.option(
+    "--formula",
+    "formula_text",
+    default=None,
+    metavar="TEXT",
+    help="Check this formula (over the spec's propositions) instead of the spec's.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
 @handle_errors
 def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> None:
@@ -59,17 +65,21 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
     # the time column's own value at the violating sample
     when = float(tr.t[int(round(result.violation_time[0] / dt))]) if not ok else None
     if as_json:
-        click.echo(json.dumps({
-            "spec": spec,
-            "trace": trace,
-            "formula": str(formula),
-            "satisfied": ok,
-            "robustness": _finite_or_none(rob),
-            "violation_time": when,
-            "failing": result.failing[0],
-            "samples": int(len(tr.t)),
-            "dt": dt,
-        }))
+        click.echo(
+            json.dumps(
+                {
+                    "spec": spec,
+                    "trace": trace,
+                    "formula": str(formula),
+                    "satisfied": ok,
+                    "robustness": _finite_or_none(rob),
+                    "violation_time": when,
+                    "failing": result.failing[0],
+                    "samples": int(len(tr.t)),
+                    "dt": dt,
+                }
+            )
+        )
     else:
         click.echo(f"{trace}: {'satisfied' if ok else 'VIOLATED'}")
         click.echo(f"  formula: {formula}")

@@ -15,14 +15,33 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
 
 @click.command("compile")
 @click.argument("spec", type=click.Path(dir_okay=False))
-@click.option("--format", "fmt", type=click.Choice(FORMATS), default="text", show_default=True,
-              help="What to write: a readable summary, JSON, Graphviz DOT, a rendered picture, or PNML.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
-              help="Write to this file (atomically) instead of standard output.")
-@click.option("--conjunction", type=click.Choice(["literal", "active"]), default=None,
-              help="How '&' combines gated terms (overrides the spec's option).")
-@click.option("--violations", type=click.Choice(["off", "permanent", "counted"]), default=None,
-              help="Track violations of safety and deadline parts (overrides the spec's option).")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(FORMATS),
+    default="text",
+    show_default=True,
+    help="What to write: a readable summary, JSON, Graphviz DOT, a rendered picture, or PNML.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write to this file (atomically) instead of standard output.",
+)
+@click.option(
+    "--conjunction",
+    type=click.Choice(["literal", "active"]),
+    default=None,
+    help="How '&' combines gated terms (overrides the spec's option).",
+)
+@click.option(
+    "--violations",
+    type=click.Choice(["off", "permanent", "counted"]),
+    default=None,
+    help="Track violations of safety and deadline parts (overrides the spec's option).",
+)
 @handle_errors
 def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None, violations: str | None) -> None:
     """Compile SPEC (.mitl) into a reward Petri net and reward expression."""

@@ -24,8 +24,9 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import click
 import numpy as np
@@ -68,7 +69,6 @@ def rollout_mode_figure(ro, automaton, rows: Sequence[int], u_max: float | None 
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
 
-
     rows = list(rows)
     n = len(rows)
     fig = Figure(figsize=(3.6 * n + 0.6, 4.6))
@@ -91,7 +91,7 @@ def rollout_mode_figure(ro, automaton, rows: Sequence[int], u_max: float | None 
         starts = np.flatnonzero(np.r_[True, modes[1:] != modes[:-1]])
         ends = np.r_[starts[1:], N1 - 1]
         for ax in axes[:, col]:
-            for s, e in zip(starts, ends):
+            for s, e in zip(starts, ends, strict=True):
                 name = automaton.names[int(modes[s])]
                 if name not in used:
                     used.append(name)
@@ -175,8 +175,9 @@ def metrics_of(learner, ev, wall_s: float) -> dict:
         "runs_succeeding": [bool(v) for v in ev.run_success()],
         "visited_p_rate": float(ev.visited_p.mean()),
         "measured": measured,
-        "final_mean_return": float(learner.returns[:, -min(10, learner.returns.shape[1]):].mean())
-        if learner.returns.size else None,
+        "final_mean_return": float(learner.returns[:, -min(10, learner.returns.shape[1]) :].mean())
+        if learner.returns.size
+        else None,
         "returns": learner.returns.round(6).tolist(),
     }
     return out
@@ -224,8 +225,14 @@ def train_hybrid_cli(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     done_before = learner.trial
-    bar = tqdm(total=trials, initial=done_before, disable=not progress, unit="trial", dynamic_ncols=True,
-               desc=Path(s.path or "spec").stem)
+    bar = tqdm(
+        total=trials,
+        initial=done_before,
+        disable=not progress,
+        unit="trial",
+        dynamic_ncols=True,
+        desc=Path(s.path or "spec").stem,
+    )
 
     def step(trial: int, returns: np.ndarray) -> None:
         bar.set_postfix_str(f"mean return {learner.returns[:, -10:].mean():8.1f}", refresh=False)
@@ -248,10 +255,15 @@ def train_hybrid_cli(
         ev = evaluate(learner, n_init)
         metrics = metrics_of(learner, ev, wall)
         if plots:
-            atomic_write(out / "learning_curve.png",
-                             png_bytes(learning_curve(learner.returns, title=f"{name}: HyRL, {learner.runs} runs")))
+            atomic_write(
+                out / "learning_curve.png",
+                png_bytes(learning_curve(learner.returns, title=f"{name}: HyRL, {learner.runs} runs")),
+            )
             fig = rollout_mode_figure(
-                ev.rollout, learner.automaton, _example_rows(ev), learner.u_max,
+                ev.rollout,
+                learner.automaton,
+                _example_rows(ev),
+                learner.u_max,
                 f"{name}: greedy policy of run 0 (background: mode)",
             )
             atomic_write(out / "rollout.png", png_bytes(fig))
@@ -260,14 +272,20 @@ def train_hybrid_cli(
     metrics["interrupted"] = interrupted
     atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
     if interrupted:
-        click.echo(f"interrupted after trial {learner.trial}; checkpoint in {out / PARAMS}\n"
-                   f"continue with: mitlc train --resume {out} --trials {trials}", err=True)
+        click.echo(
+            f"interrupted after trial {learner.trial}; checkpoint in {out / PARAMS}\n"
+            f"continue with: mitlc train --resume {out} --trials {trials}",
+            err=True,
+        )
         sys.exit(130)
     # the summary line, like SACPN's (also under -q: only the progress bar is quiet)
     big = metrics.get(f"success_rate_step_ge_{SMALL_STEP}")
     n_big = metrics.get(f"initial_states_step_ge_{SMALL_STEP}")
-    small = ("" if big is None or n_big == metrics.get("initial_states", 0)
-             else f"; {big:.2f} from the {n_big} at least {SMALL_STEP} from the set-point")
+    small = (
+        ""
+        if big is None or n_big == metrics.get("initial_states", 0)
+        else f"; {big:.2f} from the {n_big} at least {SMALL_STEP} from the set-point"
+    )
     click.echo(
         f"{learner.runs} runs x {learner.trial} trials in {wall:.1f} s; "
         f"final mean return {metrics.get('final_mean_return', float('nan')):.1f}; "
@@ -282,10 +300,21 @@ def train_hybrid_cli(
 
 @click.command("automaton")
 @click.argument("spec", type=click.Path(dir_okay=False))
-@click.option("--format", "fmt", type=click.Choice(AUTOMATON_FORMATS), default="text", show_default=True,
-              help="What to write: a readable summary, JSON, Graphviz DOT or a rendered picture.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
-              help="Write to this file (atomically) instead of standard output.")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(AUTOMATON_FORMATS),
+    default="text",
+    show_default=True,
+    help="What to write: a readable summary, JSON, Graphviz DOT or a rendered picture.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write to this file (atomically) instead of standard output.",
+)
 @handle_errors
 def automaton(spec: str, fmt: str, output: str | None) -> None:
     """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B)."""
@@ -301,8 +330,9 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
             raise InputError(f"--format {fmt} needs -o FILE", file="--output")
         atomic_write(output, render_bytes(h, fmt))
         return
-    text = {"text": lambda: str(h) + "\n", "json": lambda: h.to_json() + "\n",
-            "dot": lambda: h.to_digraph().source}[fmt]()
+    text = {"text": lambda: str(h) + "\n", "json": lambda: h.to_json() + "\n", "dot": lambda: h.to_digraph().source}[
+        fmt
+    ]()
     if output is None:
         click.echo(text, nl=False)
     else:
@@ -324,8 +354,9 @@ def _load_learners(policy_dirs: Sequence[str]) -> list:
     return learners
 
 
-def simulate_hybrid(policy_dirs: Sequence[str], spec_path: str | None, rollouts: int | None, seed: int,
-                    plot_path: str | None) -> None:
+def simulate_hybrid(
+    policy_dirs: Sequence[str], spec_path: str | None, rollouts: int | None, seed: int, plot_path: str | None
+) -> None:
     """``mitlc simulate`` for HyRL policies: greedy rollouts from random initial states of the
     spec's set, judged by the checker.  One policy runs on its own automaton (or on ``--spec``'s);
     several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
@@ -355,13 +386,14 @@ def simulate_hybrid(policy_dirs: Sequence[str], spec_path: str | None, rollouts:
         for name, passed in verdict.passed.items():
             parts.append(f"{name} {verdict.measured[name][i]:.3g} {'ok' if passed[i] else 'FAILED'}")
         parts.append("stabilised" if stable[i] else "NOT stabilised")
-        click.echo(f"rollout {i:3d} (run {run[i]:3d}, q0={x0[i, 0]:.3f}, qdot0={x0[i, 1]:.3f}): "
-                   f"{'; '.join(parts)}; return {ro.returns[i]:.1f}")
+        click.echo(
+            f"rollout {i:3d} (run {run[i]:3d}, q0={x0[i, 0]:.3f}, qdot0={x0[i, 1]:.3f}): "
+            f"{'; '.join(parts)}; return {ro.returns[i]:.1f}"
+        )
     reqs = ", ".join(r.name for r in automaton.requirements)
     click.echo(f"{int(ok.sum())}/{n} rollouts meet {reqs} and stabilise")
     rows = list(range(min(n, 3)))
-    fig = rollout_mode_figure(ro, automaton, rows, float(learners[0].u_max),
-                              f"{int(ok.sum())}/{n} rollouts succeed")
+    fig = rollout_mode_figure(ro, automaton, rows, float(learners[0].u_max), f"{int(ok.sum())}/{n} rollouts succeed")
     atomic_write(plot_path or Path(policy_dirs[0]) / "simulate.png", png_bytes(fig))
 
 
@@ -370,20 +402,52 @@ def simulate_hybrid(policy_dirs: Sequence[str], spec_path: str | None, rollouts:
 
 @click.command("compose")
 @click.argument("spec", type=click.Path(dir_okay=False))
-@click.option("--policy", "policy_dirs", type=click.Path(file_okay=False, exists=True), multiple=True, required=True,
-              help="Directory written by 'mitlc train' on a spec with one of SPEC's criteria (repeat).")
-@click.option("--initial-states", "n_init", type=click.IntRange(1, 10000), default=50, show_default=True,
-              help="Initial positions, evenly spaced over SPEC's initial range.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
-              help="Write rollouts of run 0 with the mode as background colour here (PNG).")
-@click.option("--handover-sigma", type=click.FloatRange(0, None), default=None,
-              help="Exploration (N) of the --handover-trials retraining (default 2, twice the learners').")
-@click.option("--handover-trials", type=click.IntRange(0, 1_000_000), default=0, show_default=True,
-              help="Beyond the thesis: first retrain the policies of S, P and the last evaluating mode "
-                   "for this many trials from the states the earlier modes hand over (0: plain composition).")
+@click.option(
+    "--policy",
+    "policy_dirs",
+    type=click.Path(file_okay=False, exists=True),
+    multiple=True,
+    required=True,
+    help="Directory written by 'mitlc train' on a spec with one of SPEC's criteria (repeat).",
+)
+@click.option(
+    "--initial-states",
+    "n_init",
+    type=click.IntRange(1, 10000),
+    default=50,
+    show_default=True,
+    help="Initial positions, evenly spaced over SPEC's initial range.",
+)
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write rollouts of run 0 with the mode as background colour here (PNG).",
+)
+@click.option(
+    "--handover-sigma",
+    type=click.FloatRange(0, None),
+    default=None,
+    help="Exploration (N) of the --handover-trials retraining (default 2, twice the learners').",
+)
+@click.option(
+    "--handover-trials",
+    type=click.IntRange(0, 1_000_000),
+    default=0,
+    show_default=True,
+    help="Beyond the thesis: first retrain the policies of S, P and the last evaluating mode "
+    "for this many trials from the states the earlier modes hand over (0: plain composition).",
+)
 @handle_errors
-def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path: str | None,
-                handover_trials: int = 0, handover_sigma: float | None = None) -> None:
+def compose_cmd(
+    spec: str,
+    policy_dirs: tuple[str, ...],
+    n_init: int,
+    plot_path: str | None,
+    handover_trials: int = 0,
+    handover_sigma: float | None = None,
+) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
     from mitlc.learn.hyrl import HANDOVER_SIGMA, brake_bound, compose, train_handover
     from mitlc.learn.plots import png_bytes
@@ -398,20 +462,29 @@ def compose_cmd(spec: str, policy_dirs: tuple[str, ...], n_init: int, plot_path:
         last = ctl.assignment["S"][0]
         sigma = HANDOVER_SIGMA if handover_sigma is None else handover_sigma
         ctl, _ = train_handover(ctl, last, handover_trials, sigma=sigma)
-        click.echo(f"retrained {Path(last.spec.path or 'spec').stem}'s modes for {handover_trials} trials "
-                   f"from the handed-over states, exploring with {sigma:g} N")
+        click.echo(
+            f"retrained {Path(last.spec.path or 'spec').stem}'s modes for {handover_trials} trials "
+            f"from the handed-over states, exploring with {sigma:g} N"
+        )
     ev = ctl.evaluate(n_init)
     for r in range(ctl.runs):
-        click.echo(f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
-                   f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})")
-    click.echo(f"success rate {ev.success_rate():.2f} ({ctl.runs} runs, all of {n_init} initial states); "
-               f"states {ev.state_rate():.2f}")
+        click.echo(
+            f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
+            f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})"
+        )
+    click.echo(
+        f"success rate {ev.success_rate():.2f} ({ctl.runs} runs, all of {n_init} initial states); "
+        f"states {ev.state_rate():.2f}"
+    )
     if "E_Mp" in ctl.automaton.names:
         b = brake_bound(ev, ctl.automaton, ctl.plant, ctl.params)
-        click.echo(f"braking at the bound from the states handed over to E_Mp avoids the overshoot from "
-                   f"{b.mean():.2f} of the states")
+        click.echo(
+            f"braking at the bound from the states handed over to E_Mp avoids the overshoot from "
+            f"{b.mean():.2f} of the states"
+        )
     if plot_path is not None:
         rows = _example_rows(ev)
-        fig = rollout_mode_figure(ev.rollout, ctl.automaton, rows, float(ctl.params["u_max"]),
-                                  f"{Path(spec).stem}: composed policies, run 0")
+        fig = rollout_mode_figure(
+            ev.rollout, ctl.automaton, rows, float(ctl.params["u_max"]), f"{Path(spec).stem}: composed policies, run 0"
+        )
         atomic_write(plot_path, png_bytes(fig))

@@ -33,14 +33,17 @@ def _list(spec) -> str:
     sites = weight_sites(spec.formula)
     width = max([len(s.axis) for s in sites] + [len("option.conjunction")])
     lines += [f"  {s.axis.ljust(width)}  {format_value(s.value):>6}: {s.text}" for s in sites] or [
-        "  none (write 'w * phi' in the formula to make a weight sweepable)"]
+        "  none (write 'w * phi' in the formula to make a weight sweepable)"
+    ]
     lines += ["", "compile options (value: allowed values):"]
     lines += [f"  {('option.' + k).ljust(width)}  {spec.option(k):>6}: {', '.join(v)}" for k, v in OPTIONS.items()]
     lines += ["", "trainer settings (SacpnSettings; value):"]
     defaults = SacpnSettings()
-    meaning = {"sigma": ("sigma_frac x u_max", lambda: defaults.sigma_frac * spec.param("u_max")),
-               "trial_s": ("the spec's horizon", lambda: spec.horizon if spec.horizon is not None else 3.0),
-               "dt": ("the plant's dt", lambda: spec.param("dt"))}
+    meaning = {
+        "sigma": ("sigma_frac x u_max", lambda: defaults.sigma_frac * spec.param("u_max")),
+        "trial_s": ("the spec's horizon", lambda: spec.horizon if spec.horizon is not None else 3.0),
+        "dt": ("the plant's dt", lambda: spec.param("dt")),
+    }
     for name in sweepable_settings():
         value = getattr(defaults, name)
         note = ""
@@ -55,31 +58,65 @@ def _list(spec) -> str:
 
 @click.command("sweep")
 @click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
-@click.option("--grid", "grid", multiple=True, metavar="NAME=V1,V2,...",
-              help="An axis of the grid: a trainer setting (sigma=1,2,3), a weight (weight.psi=1,3,10) or a "
-                   "compile option (option.violations=off,permanent). Repeat for more axes; --list shows the names.")
-@click.option("--seeds", type=click.IntRange(1, 10000), default=3, show_default=True,
-              help="Seeds 0..N-1 for every configuration.")
-@click.option("--runs", type=click.IntRange(1, 10000), default=30, show_default=True,
-              help="Runs per task (trained together, as in mitlc train).")
+@click.option(
+    "--grid",
+    "grid",
+    multiple=True,
+    metavar="NAME=V1,V2,...",
+    help="An axis of the grid: a trainer setting (sigma=1,2,3), a weight (weight.psi=1,3,10) or a "
+    "compile option (option.violations=off,permanent). Repeat for more axes; --list shows the names.",
+)
+@click.option(
+    "--seeds", type=click.IntRange(1, 10000), default=3, show_default=True, help="Seeds 0..N-1 for every configuration."
+)
+@click.option(
+    "--runs",
+    type=click.IntRange(1, 10000),
+    default=30,
+    show_default=True,
+    help="Runs per task (trained together, as in mitlc train).",
+)
 @click.option("--trials", type=click.IntRange(1, 10**7), default=500, show_default=True, help="Trials per run.")
-@click.option("--backend", type=click.Choice(["local", "ray"]), default="local", show_default=True,
-              help="local: a process pool on this machine. ray: Ray tasks (pip install 'mitlc[ray]').")
-@click.option("--address", default=None,
-              help="Ray cluster to use (auto, HOST:6379, ray://HOST:10001); default RAY_ADDRESS, else a local "
-                   "Ray for this command.")
-@click.option("--workers", type=click.IntRange(1, 4096), default=None,
-              help="Processes (local) or CPUs of the local Ray; default min(2, cores).")
-@click.option("--max-retries", type=click.IntRange(0, 100), default=3, show_default=True,
-              help="Times a task is run again when its worker dies.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output directory (default runs/sweep_<spec name>); re-running skips the tasks done there.")
+@click.option(
+    "--backend",
+    type=click.Choice(["local", "ray"]),
+    default="local",
+    show_default=True,
+    help="local: a process pool on this machine. ray: Ray tasks (pip install 'mitlc[ray]').",
+)
+@click.option(
+    "--address",
+    default=None,
+    help="Ray cluster to use (auto, HOST:6379, ray://HOST:10001); default RAY_ADDRESS, else a local "
+    "Ray for this command.",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(1, 4096),
+    default=None,
+    help="Processes (local) or CPUs of the local Ray; default min(2, cores).",
+)
+@click.option(
+    "--max-retries",
+    type=click.IntRange(0, 100),
+    default=3,
+    show_default=True,
+    help="Times a task is run again when its worker dies.",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="Output directory (default runs/sweep_<spec name>); re-running skips the tasks done there.",
+)
 @click.option("--list", "list_only", is_flag=True, help="Print every grid name with its current value and exit.")
 @click.option("--no-plot", is_flag=True, help="Skip sweep.png.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @handle_errors
-def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_retries, out_dir, list_only,
-          no_plot, quiet) -> None:
+def sweep(
+    spec_path, grid, seeds, runs, trials, backend, address, workers, max_retries, out_dir, list_only, no_plot, quiet
+) -> None:
     """Train SPEC over a grid of trainer settings, weights and options, several seeds each."""
     from tqdm import tqdm
 
@@ -105,29 +142,38 @@ def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_r
         raise InputError("--address is for --backend ray", file="--address")
     plan = plan_sweep(spec, grid, range(seeds), runs, trials)
     out = Path(out_dir or Path("runs") / f"sweep_{Path(spec_path).stem}")
-    def on_retry(payload: dict, attempt: int) -> None:
-        click.echo(f"a worker died; running task {payload['key']} again (attempt {attempt} of {max_retries + 1})",
-                   err=True)
 
-    engine = (RayBackend(address, workers, max_retries) if backend == "ray"
-              else LocalBackend(workers, max_retries, on_retry=on_retry))
+    def on_retry(payload: dict, attempt: int) -> None:
+        click.echo(
+            f"a worker died; running task {payload['key']} again (attempt {attempt} of {max_retries + 1})", err=True
+        )
+
+    engine = (
+        RayBackend(address, workers, max_retries)
+        if backend == "ray"
+        else LocalBackend(workers, max_retries, on_retry=on_retry)
+    )
     if backend == "ray":
         RayBackend._import()  # a clear error before anything runs
 
     bar: dict[str, Any] = {}
 
     def on_start(total: int, done: int) -> None:
-        click.echo(f"{total} tasks ({plan.n_configs} configurations x {len(plan.seeds)} seeds, "
-                   f"{runs} runs x {trials} trials each); {done} already in {out}; running on {engine.describe()}",
-                   err=True)
-        bar["bar"] = tqdm(total=total, initial=done, disable=quiet, unit="task", dynamic_ncols=True,
-                          desc=Path(spec_path).stem)
+        click.echo(
+            f"{total} tasks ({plan.n_configs} configurations x {len(plan.seeds)} seeds, "
+            f"{runs} runs x {trials} trials each); {done} already in {out}; running on {engine.describe()}",
+            err=True,
+        )
+        bar["bar"] = tqdm(
+            total=total, initial=done, disable=quiet, unit="task", dynamic_ncols=True, desc=Path(spec_path).stem
+        )
 
     def on_result(task, record) -> None:
-        shown = " ".join(f"{a.name}={v}" for a, v in zip(plan.axes, task.labels))
+        shown = " ".join(f"{a.name}={v}" for a, v in zip(plan.axes, task.labels, strict=True))
         rate = record["success_rate"]
-        bar["bar"].set_postfix_str(f"{shown} seed {task.seed}: "
-                                   + (f"success {rate:.2f}" if rate is not None else "diverged"), refresh=False)
+        bar["bar"].set_postfix_str(
+            f"{shown} seed {task.seed}: " + (f"success {rate:.2f}" if rate is not None else "diverged"), refresh=False
+        )
         bar["bar"].update(1)
 
     try:
@@ -135,8 +181,9 @@ def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_r
     except KeyboardInterrupt:
         if "bar" in bar:
             bar["bar"].close()
-        click.echo(f"interrupted; finished tasks are in {out / 'results.csv'}; run the same command to continue",
-                   err=True)
+        click.echo(
+            f"interrupted; finished tasks are in {out / 'results.csv'}; run the same command to continue", err=True
+        )
         sys.exit(130)
     finally:
         if "bar" in bar:
@@ -148,12 +195,14 @@ def sweep(spec_path, grid, seeds, runs, trials, backend, address, workers, max_r
         fig = heatmap_figure(plan, outcome.records)
         if fig is not None:
             atomic_write(out / "sweep.png", png_bytes(fig))
-    click.echo(f"{outcome.finished} tasks run in {outcome.wall_s:.1f} s, {outcome.skipped} done earlier; "
-               f"results in {out}")
+    click.echo(
+        f"{outcome.finished} tasks run in {outcome.wall_s:.1f} s, {outcome.skipped} done earlier; results in {out}"
+    )
     if outcome.failed:
         for task, exc in outcome.failed:
-            shown = " ".join(f"{a.name}={v}" for a, v in zip(plan.axes, task.labels))
-            click.echo(f"error: task {task.key} ({shown} seed {task.seed}) failed: "
-                       f"{type(exc).__name__}: {exc}", err=True)
+            shown = " ".join(f"{a.name}={v}" for a, v in zip(plan.axes, task.labels, strict=True))
+            click.echo(
+                f"error: task {task.key} ({shown} seed {task.seed}) failed: {type(exc).__name__}: {exc}", err=True
+            )
         click.echo(f"{len(outcome.failed)} task(s) failed; run the same command to retry them", err=True)
         sys.exit(1)

@@ -52,8 +52,11 @@ def find_default_spec(plant_name: str) -> Path:
         p = d / plant.default_spec
         if p.is_file():
             return p
-    raise InputError(f"default spec '{plant.default_spec}' not found in {', '.join(str(d) for d in SPECS_DIRS)}",
-                     file="--spec", hint="pass --spec FILE")
+    raise InputError(
+        f"default spec '{plant.default_spec}' not found in {', '.join(str(d) for d in SPECS_DIRS)}",
+        file="--spec",
+        hint="pass --spec FILE",
+    )
 
 
 def _load(spec_path: str | None, source: str | None = None, origin: str | None = None):
@@ -102,8 +105,17 @@ def _rollout_png(agent, ro, verdicts, title: str) -> bytes:
 
     show = min(5, ro.states.shape[0])
     regions, names = _region_track(agent, ro.codes[:show])
-    fig = rollout_figure(ro.states[:show], ro.actions[:show], regions, names, ro.dt, agent.plant.state_names,
-                         agent.u_max, title, None if verdicts is None else list(verdicts[:show]))
+    fig = rollout_figure(
+        ro.states[:show],
+        ro.actions[:show],
+        regions,
+        names,
+        ro.dt,
+        agent.plant.state_names,
+        agent.u_max,
+        title,
+        None if verdicts is None else list(verdicts[:show]),
+    )
     return png_bytes(fig)
 
 
@@ -143,8 +155,12 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
             greedy_returns=ro.returns.round(6).tolist(),
         )
         if plots:
-            atomic_write(out / "rollout.png", _rollout_png(agent, ro, res.satisfied,
-                                                           f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"))
+            atomic_write(
+                out / "rollout.png",
+                _rollout_png(
+                    agent, ro, res.satisfied, f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"
+                ),
+            )
     if plots and agent.trial > 0:
         fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} runs")
         atomic_write(out / "learning_curve.png", png_bytes(fig))
@@ -154,37 +170,99 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
 
 @click.command("train")
 @click.option("--plant", "plant_name", default=None, help="Plant to train (must match the spec's plant).")
-@click.option("--spec", "spec_path", type=click.Path(dir_okay=False), default=None,
-              help="Spec file (.mitl); default: the plant's default spec.")
+@click.option(
+    "--spec",
+    "spec_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Spec file (.mitl); default: the plant's default spec.",
+)
 @click.option("--runs", type=click.IntRange(1, 10000), default=30, show_default=True, help="Independent runs.")
-@click.option("--trials", type=click.IntRange(0, 10**7), default=500, show_default=True,
-              help="Trials per run (in total, counting trials done before --resume).")
+@click.option(
+    "--trials",
+    type=click.IntRange(0, 10**7),
+    default=500,
+    show_default=True,
+    help="Trials per run (in total, counting trials done before --resume).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of all random numbers.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output directory (default runs/<spec name>, or the --resume directory).")
-@click.option("--resume", "resume_dir", type=click.Path(file_okay=False, exists=True), default=None,
-              help="Continue the training saved in this directory.")
-@click.option("--conjunction", type=click.Choice(["literal", "active"]), default=None,
-              help="How '&' combines gated terms (overrides the spec's option).")
-@click.option("--violations", type=click.Choice(["off", "permanent", "counted"]), default=None,
-              help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).")
-@click.option("--penalty-ramp", type=click.FloatRange(0, 1), default=None,
-              help="With --violations: the fraction of the trials over which the penalty c grows from 0 "
-                   "(default 0.75; 0 = full from the start).")
-@click.option("--sigma", type=float, default=None,
-              help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL).")
-@click.option("--mask", type=click.Choice(["current", "next"]), default=None,
-              help="Update masking: current = M_k (gradient, default), next = M_k+1 (Algorithm 1 as printed).")
-@click.option("--saturation", type=click.Choice(["applied", "none"]), default=None,
-              help="Actor anti-wind-up: applied (default) or none (the thesis's update).")
-@click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
-              help="Any trainer setting (repeat), e.g. --set alpha_a=0.08 --set rbf=10x10x5: SacpnSettings "
-                   "for a formula spec, HyrlSettings for a 'require' spec (docs/training.md, docs/hyrl.md).")
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="Output directory (default runs/<spec name>, or the --resume directory).",
+)
+@click.option(
+    "--resume",
+    "resume_dir",
+    type=click.Path(file_okay=False, exists=True),
+    default=None,
+    help="Continue the training saved in this directory.",
+)
+@click.option(
+    "--conjunction",
+    type=click.Choice(["literal", "active"]),
+    default=None,
+    help="How '&' combines gated terms (overrides the spec's option).",
+)
+@click.option(
+    "--violations",
+    type=click.Choice(["off", "permanent", "counted"]),
+    default=None,
+    help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).",
+)
+@click.option(
+    "--penalty-ramp",
+    type=click.FloatRange(0, 1),
+    default=None,
+    help="With --violations: the fraction of the trials over which the penalty c grows from 0 "
+    "(default 0.75; 0 = full from the start).",
+)
+@click.option(
+    "--sigma", type=float, default=None, help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL)."
+)
+@click.option(
+    "--mask",
+    type=click.Choice(["current", "next"]),
+    default=None,
+    help="Update masking: current = M_k (gradient, default), next = M_k+1 (Algorithm 1 as printed).",
+)
+@click.option(
+    "--saturation",
+    type=click.Choice(["applied", "none"]),
+    default=None,
+    help="Actor anti-wind-up: applied (default) or none (the thesis's update).",
+)
+@click.option(
+    "--set",
+    "assignments",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Any trainer setting (repeat), e.g. --set alpha_a=0.08 --set rbf=10x10x5: SacpnSettings "
+    "for a formula spec, HyrlSettings for a 'require' spec (docs/training.md, docs/hyrl.md).",
+)
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @handle_errors
-def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjunction, violations, penalty_ramp,
-          sigma, mask, saturation, assignments, no_plots, quiet) -> None:
+def train(
+    plant_name,
+    spec_path,
+    runs,
+    trials,
+    seed,
+    out_dir,
+    resume_dir,
+    conjunction,
+    violations,
+    penalty_ramp,
+    sigma,
+    mask,
+    saturation,
+    assignments,
+    no_plots,
+    quiet,
+) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
     from tqdm import tqdm
 
@@ -223,13 +301,24 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
         overrides = {k: v for k, v in (("sigma", sigma), ("saturation", saturation)) if v is not None}
         overrides.update(parse_assignments(HyrlSettings, assignments))
         hyrl_settings = _checked(HyrlSettings(**overrides), assignments, {"sigma": sigma, "saturation": saturation})
-        train_hybrid_cli(spec, runs, trials, seed, out, progress=not quiet, settings=hyrl_settings,
-                         plots=not no_plots, resume=resume_dir)
+        train_hybrid_cli(
+            spec,
+            runs,
+            trials,
+            seed,
+            out,
+            progress=not quiet,
+            settings=hyrl_settings,
+            plots=not no_plots,
+            resume=resume_dir,
+        )
         return
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
-    settings = _checked(_settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
-                        assignments, {"sigma": sigma, "mask": mask, "saturation": saturation,
-                                      "penalty_ramp": penalty_ramp})
+    settings = _checked(
+        _settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
+        assignments,
+        {"sigma": sigma, "mask": mask, "saturation": saturation, "penalty_ramp": penalty_ramp},
+    )
     rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
     agent = Sacpn(rs, settings, runs=runs, seed=seed)
     wall_before = 0.0
@@ -242,8 +331,14 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
     out.mkdir(parents=True, exist_ok=True)
 
     todo = max(0, trials - agent.trial)
-    bar = tqdm(total=trials, initial=agent.trial, disable=quiet, unit="trial", dynamic_ncols=True,
-               desc=Path(spec.path or "spec").stem)
+    bar = tqdm(
+        total=trials,
+        initial=agent.trial,
+        disable=quiet,
+        unit="trial",
+        dynamic_ncols=True,
+        desc=Path(spec.path or "spec").stem,
+    )
 
     def progress(trial: int, returns: np.ndarray) -> None:
         recent = agent.returns[:, -10:].mean()
@@ -263,28 +358,53 @@ def train(plant_name, spec_path, runs, trials, seed, out_dir, resume_dir, conjun
     wall = wall_before + time.perf_counter() - start
     metrics = _write_outputs(out, agent, spec, wall, interrupted, plots=not no_plots)
     if interrupted:
-        click.echo(f"interrupted after trial {agent.trial}; checkpoint in {out / PARAMS}\n"
-                   f"continue with: mitlc train --resume {out} --trials {trials}", err=True)
+        click.echo(
+            f"interrupted after trial {agent.trial}; checkpoint in {out / PARAMS}\n"
+            f"continue with: mitlc train --resume {out} --trials {trials}",
+            err=True,
+        )
         sys.exit(130)
     rate = metrics.get("success_rate")
-    click.echo(f"{agent.runs} runs x {agent.trial} trials in {wall:.1f} s; "
-               f"final mean return {agent.returns[:, -10:].mean():.1f}; "
-               f"success rate {rate:.2f} (monitor: {spec.monitor_formula}); results in {out}"
-               if rate is not None else f"no trials run; results in {out}")
+    click.echo(
+        f"{agent.runs} runs x {agent.trial} trials in {wall:.1f} s; "
+        f"final mean return {agent.returns[:, -10:].mean():.1f}; "
+        f"success rate {rate:.2f} (monitor: {spec.monitor_formula}); results in {out}"
+        if rate is not None
+        else f"no trials run; results in {out}"
+    )
 
 
 @click.command("simulate")
-@click.option("--policy", "policy_dirs", type=click.Path(file_okay=False, exists=True), required=True,
-              multiple=True,
-              help="Directory written by 'mitlc train'; repeat to run HyRL policies learned separately "
-                   "composed on --spec's combined automaton.")
-@click.option("--spec", "spec_path", type=click.Path(dir_okay=False), default=None,
-              help="Spec to judge by and start from (default: the training spec).")
-@click.option("--rollouts", type=click.IntRange(1, 100000), default=None,
-              help="Number of rollouts (default: one per trained run); rollout i uses run i mod runs.")
+@click.option(
+    "--policy",
+    "policy_dirs",
+    type=click.Path(file_okay=False, exists=True),
+    required=True,
+    multiple=True,
+    help="Directory written by 'mitlc train'; repeat to run HyRL policies learned separately "
+    "composed on --spec's combined automaton.",
+)
+@click.option(
+    "--spec",
+    "spec_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Spec to judge by and start from (default: the training spec).",
+)
+@click.option(
+    "--rollouts",
+    type=click.IntRange(1, 100000),
+    default=None,
+    help="Number of rollouts (default: one per trained run); rollout i uses run i mod runs.",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the initial states.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
-              help="Write the figure here (default DIR/simulate.png).")
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write the figure here (default DIR/simulate.png).",
+)
 @handle_errors
 def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
     """Roll out a trained greedy policy from the spec's initial set and judge each rollout.
@@ -297,8 +417,9 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
     policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
     if not ckpt.is_file():
-        raise InputError(f"no {PARAMS} in {policy_dir} (train first with 'mitlc train --out DIR')",
-                         file=str(policy_dir))
+        raise InputError(
+            f"no {PARAMS} in {policy_dir} (train first with 'mitlc train --out DIR')", file=str(policy_dir)
+        )
     meta = read_meta(ckpt)
     if meta.get("kind") == "hyrl":
         from mitlc.cli.hybrid import simulate_hybrid
@@ -306,11 +427,11 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
         simulate_hybrid(policy_dirs, spec_path, rollouts, seed, plot_path)
         return
     if len(policy_dirs) > 1:
-        raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy",
-                         file="--policy")
+        raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy", file="--policy")
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
-    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=meta.get("conjunction"),
-                                                     violations=meta.get("violations")))
+    rs = compile_spec(
+        spec, CompileOptions.from_spec(spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"))
+    )
     agent = Sacpn(rs, SacpnSettings.from_dict(meta["settings"]), runs=int(meta["runs"]), seed=int(meta["seed"]))
     agent.load(ckpt)
     n = rollouts or agent.runs
@@ -323,8 +444,11 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
     names = agent.plant.state_names
     net = agent.rs.net
     # the net's own record of violations (violations = permanent | counted): final tokens
-    watched = [i for i, p in enumerate(net.places)
-               if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))]
+    watched = [
+        i
+        for i, p in enumerate(net.places)
+        if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))
+    ]
     final = agent.runtime.trace_markings(ro.codes)[:, -1] if watched else None
     for i in range(n):
         start = ", ".join(f"{v}={x0[i, j]:.3f}" for j, v in enumerate(names))
@@ -333,8 +457,12 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
         if final is not None:
             marked = [f"{net.places[j].name}={int(final[i, j])}" for j in watched if final[i, j]]
             record = f"; net records {', '.join(marked) if marked else 'no violation'}"
-        click.echo(f"rollout {i:3d} (run {i % agent.runs:3d}, {start}): {verdict}; "
-                   f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}")
+        click.echo(
+            f"rollout {i:3d} (run {i % agent.runs:3d}, {start}): {verdict}; "
+            f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}"
+        )
     click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
-    atomic_write(plot_path or Path(policy_dir) / "simulate.png",
-                 _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"))
+    atomic_write(
+        plot_path or Path(policy_dir) / "simulate.png",
+        _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"),
+    )

@@ -7,8 +7,9 @@ stepping a batch of runs through it, JSON and Graphviz forms.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -232,7 +233,8 @@ class HybridAutomaton:
     def __str__(self) -> str:
         lines = [
             f"hybrid automaton: plant {self.plant_name or '-'}, set-point {fmt_const(self.setpoint)}, "
-            f"q0 in [{fmt_const(self.q0_range[0])}, {fmt_const(self.q0_range[1])}], horizon {fmt_const(self.horizon)} s",
+            f"q0 in [{fmt_const(self.q0_range[0])}, {fmt_const(self.q0_range[1])}], "
+            f"horizon {fmt_const(self.horizon)} s",
             "requirements: " + ", ".join(_req_text(r) for r in self.requirements),
             f"cases: {', '.join(self.cases)}",
             "memory z = (q0, t); t runs in: " + (", ".join(m.name for m in self.modes if m.clock) or "none"),
@@ -258,9 +260,7 @@ class HybridAutomaton:
             "setpoint": self.setpoint,
             "init": {"q0": list(self.q0_range), "qdot0": list(self.qdot0_range)},
             "horizon": self.horizon,
-            "requirements": [
-                {"name": r.name, "lo": r.lo, "hi": r.hi, "band": r.band} for r in self.requirements
-            ],
+            "requirements": [{"name": r.name, "lo": r.lo, "hi": r.hi, "band": r.band} for r in self.requirements],
             "cases": list(self.cases),
             "memory": {"vars": ["q0", "t"], "clock_runs_in": [m.name for m in self.modes if m.clock]},
             "initial": self.initial,
@@ -280,7 +280,13 @@ class HybridAutomaton:
                 for m in self.modes
             ],
             "edges": [
-                {"src": e.src, "dst": e.dst, "kind": e.kind, "guard": str(e.guard), "guard_tree": guard_to_dict(e.guard)}
+                {
+                    "src": e.src,
+                    "dst": e.dst,
+                    "kind": e.kind,
+                    "guard": str(e.guard),
+                    "guard_tree": guard_to_dict(e.guard),
+                }
                 for e in self.edges
             ],
             "constants": {
@@ -329,7 +335,14 @@ class HybridAutomaton:
         for e in self.edges:
             color = {"violation": "#b91c1c", "recovery": "#1d4ed8"}.get(e.kind, "#374151")
             style = "dashed" if e.kind == "recovery" else "solid"
-            g.edge(e.src, e.dst, label=_dot(e.guard) + ("\\l" if isinstance(e.guard, AnyOf) and len(str(e.guard)) > 40 else ""), color=color, fontcolor=color, style=style)
+            g.edge(
+                e.src,
+                e.dst,
+                label=_dot(e.guard) + ("\\l" if isinstance(e.guard, AnyOf) and len(str(e.guard)) > 40 else ""),
+                color=color,
+                fontcolor=color,
+                style=style,
+            )
         return g
 
 

@@ -51,8 +51,8 @@ qdot < 0 | (q > 0.1*q0 & t < 0.6) | t > 0.8
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from mitlc.errors import MitlError, SpecError
 from mitlc.hybrid.automaton import Edge, HybridAutomaton, Mode
@@ -162,98 +162,103 @@ class _Criterion:
     doc: str = ""
 
 
+_CRITERIA: dict[str, Callable[[Requirement, _Builder], _Criterion]] = {}
+"""The builder of each criterion's contribution (filled below, in :data:`ORDER`)."""
+
+
 def _criteria(spec: Spec, b: _Builder) -> list[_Criterion]:
     reqs = {r.name: r for r in spec.requirements}
-    out: list[_Criterion] = []
-    for name in ORDER:
-        r = reqs.get(name)
-        if r is None:
-            continue
-        if name == "rise_time":
-            lo, hi = r.lo, r.hi
-            t_lo, t_hi = Lin((), lo), Lin((), hi)
-            out.append(
-                _Criterion(
-                    r,
-                    entry=lambda d: b.past(F_RISE_START, d),
-                    invariant=lambda d, first: all_of(
-                        b.past(F_RISE_START, d), b.before(F_RISE_END, d), Cmp("t", "<=", t_hi)
-                    ),
-                    success=lambda d: all_of(b.past(F_RISE_END, d), Cmp("t", ">=", t_lo), Cmp("t", "<=", t_hi)),
-                    failure=lambda d: any_of(
-                        b.reversed(d), all_of(b.past(F_RISE_END, d), Cmp("t", "<", t_lo)), Cmp("t", ">", t_hi)
-                    ),
-                    hold=lambda d: TRUE,
-                    s_band=None,
-                    target=b.thr(F_RISE_END),
-                    clock=True,
-                    doc="Table B-3: from 10% to 90% of the step within [lo, hi] s of the mode clock, rising all the way",
-                )
-            )
-        elif name == "overshoot":
-            if r.lo > 0:
-                raise _located(SpecError("overshoot takes an upper bound only ('require overshoot <= M_p')"), r)
-            f_peak = -r.hi  # (3-1): q_peak = q_des + M_p (q_des - q0)
-            out.append(
-                _Criterion(
-                    r,
-                    entry=lambda d: b.past(F_NEAR, d),
-                    invariant=lambda d, first: all_of(
-                        b.past(F_NEAR if first else F_RISE_END, d), b.before(f_peak, d)
-                    ),
-                    success=lambda d: b.reversed(d),
-                    failure=lambda d: b.past(f_peak, d),
-                    hold=lambda d: b.before(f_peak, d),
-                    s_band=lambda d: all_of(b.past(F_S_LOW, d, strict=False), b.before(f_peak, d)),
-                    target=b.thr(0.0),
-                    doc="Table B-1: from 95% of the step until the velocity turns, never past the peak (3-1)",
-                )
-            )
-        elif name == "settling_time":
-            if r.lo > 0:
-                raise _located(SpecError("settling_time takes an upper bound only ('require settling_time <= t_s')"), r)
-            band = r.band if r.band is not None else DEFAULT_SETTLING_BAND
-            t_s = Lin((), r.hi)
+    return [_CRITERIA[name](reqs[name], b) for name in ORDER if name in reqs]
 
-            def in_band(d: int, band: float = band) -> Guard:
-                return all_of(b.past(band, d, strict=False), b.before(-band, d))
 
-            out.append(
-                _Criterion(
-                    r,
-                    entry=lambda d, band=band: any_of(b.past(band, d, strict=False), Cmp("tau", ">=", t_s)),
-                    invariant=lambda d, first: Cmp("tau", "<", t_s),
-                    success=lambda d: all_of(Cmp("tau", ">=", t_s), in_band(d)),
-                    failure=lambda d: all_of(Cmp("tau", ">=", t_s), negate(in_band(d))),
-                    hold=in_band,
-                    s_band=in_band,
-                    target=b.thr(0.0),
-                    doc="beyond the thesis: within the band (a fraction of the step) at tau = t_s "
-                    "and ever after (the band joins Inv(S))",
-                )
-            )
-        else:  # steady_state_error
-            if r.lo > 0:
-                raise _located(
-                    SpecError("steady_state_error takes an upper bound only ('require steady_state_error <= e')"), r
-                )
-            lo_b, hi_b = Lin((), round(b.s - r.hi, 12)), Lin((), round(b.s + r.hi, 12))
-            ess_band = all_of(Cmp("q", ">=", lo_b), Cmp("q", "<=", hi_b))
-            out.append(
-                _Criterion(
-                    r,
-                    entry=lambda d: b.past(F_NEAR, d),
-                    invariant=lambda d, first: negate(ess_band),
-                    success=lambda d: ess_band,
-                    failure=lambda d: FALSE,
-                    hold=lambda d: ess_band,
-                    s_band=lambda d: ess_band,
-                    target=b.thr(0.0),
-                    doc="beyond the thesis: reach |q - q_des| <= e_ss (absolute) and stay there "
-                    "(the band joins Inv(S)); the E mode has no violation of its own",
-                )
-            )
-    return out
+def _rise_time(r: Requirement, b: _Builder) -> _Criterion:
+    """Rise time within ``[lo, hi]`` s (Table B-3)."""
+    lo, hi = r.lo, r.hi
+    t_lo, t_hi = Lin((), lo), Lin((), hi)
+    return _Criterion(
+        r,
+        entry=lambda d: b.past(F_RISE_START, d),
+        invariant=lambda d, first: all_of(b.past(F_RISE_START, d), b.before(F_RISE_END, d), Cmp("t", "<=", t_hi)),
+        success=lambda d: all_of(b.past(F_RISE_END, d), Cmp("t", ">=", t_lo), Cmp("t", "<=", t_hi)),
+        failure=lambda d: any_of(
+            b.reversed(d), all_of(b.past(F_RISE_END, d), Cmp("t", "<", t_lo)), Cmp("t", ">", t_hi)
+        ),
+        hold=lambda d: TRUE,
+        s_band=None,
+        target=b.thr(F_RISE_END),
+        clock=True,
+        doc="Table B-3: from 10% to 90% of the step within [lo, hi] s of the mode clock, rising all the way",
+    )
+
+
+def _overshoot(r: Requirement, b: _Builder) -> _Criterion:
+    """Overshoot at most ``M_p`` (Table B-1)."""
+    if r.lo > 0:
+        raise _located(SpecError("overshoot takes an upper bound only ('require overshoot <= M_p')"), r)
+    f_peak = -r.hi  # (3-1): q_peak = q_des + M_p (q_des - q0)
+    return _Criterion(
+        r,
+        entry=lambda d: b.past(F_NEAR, d),
+        invariant=lambda d, first: all_of(b.past(F_NEAR if first else F_RISE_END, d), b.before(f_peak, d)),
+        success=lambda d: b.reversed(d),
+        failure=lambda d: b.past(f_peak, d),
+        hold=lambda d: b.before(f_peak, d),
+        s_band=lambda d: all_of(b.past(F_S_LOW, d, strict=False), b.before(f_peak, d)),
+        target=b.thr(0.0),
+        doc="Table B-1: from 95% of the step until the velocity turns, never past the peak (3-1)",
+    )
+
+
+def _settling_time(r: Requirement, b: _Builder) -> _Criterion:
+    """Settling time at most ``t_s`` within a band (beyond the thesis)."""
+    if r.lo > 0:
+        raise _located(SpecError("settling_time takes an upper bound only ('require settling_time <= t_s')"), r)
+    band = r.band if r.band is not None else DEFAULT_SETTLING_BAND
+    t_s = Lin((), r.hi)
+
+    def in_band(d: int, band: float = band) -> Guard:
+        return all_of(b.past(band, d, strict=False), b.before(-band, d))
+
+    return _Criterion(
+        r,
+        entry=lambda d, band=band: any_of(b.past(band, d, strict=False), Cmp("tau", ">=", t_s)),
+        invariant=lambda d, first: Cmp("tau", "<", t_s),
+        success=lambda d: all_of(Cmp("tau", ">=", t_s), in_band(d)),
+        failure=lambda d: all_of(Cmp("tau", ">=", t_s), negate(in_band(d))),
+        hold=in_band,
+        s_band=in_band,
+        target=b.thr(0.0),
+        doc="beyond the thesis: within the band (a fraction of the step) at tau = t_s "
+        "and ever after (the band joins Inv(S))",
+    )
+
+
+def _steady_state_error(r: Requirement, b: _Builder) -> _Criterion:
+    """Steady-state error at most ``e`` (beyond the thesis)."""
+    if r.lo > 0:
+        raise _located(SpecError("steady_state_error takes an upper bound only ('require steady_state_error <= e')"), r)
+    lo_b, hi_b = Lin((), round(b.s - r.hi, 12)), Lin((), round(b.s + r.hi, 12))
+    ess_band = all_of(Cmp("q", ">=", lo_b), Cmp("q", "<=", hi_b))
+    return _Criterion(
+        r,
+        entry=lambda d: b.past(F_NEAR, d),
+        invariant=lambda d, first: negate(ess_band),
+        success=lambda d: ess_band,
+        failure=lambda d: FALSE,
+        hold=lambda d: ess_band,
+        s_band=lambda d: ess_band,
+        target=b.thr(0.0),
+        doc="beyond the thesis: reach |q - q_des| <= e_ss (absolute) and stay there "
+        "(the band joins Inv(S)); the E mode has no violation of its own",
+    )
+
+
+_CRITERIA.update(
+    rise_time=_rise_time,
+    overshoot=_overshoot,
+    settling_time=_settling_time,
+    steady_state_error=_steady_state_error,
+)
 
 
 def _located(err: SpecError, r: Requirement) -> SpecError:
@@ -293,8 +298,7 @@ def compile_requirements(
 
 def _compile(spec: Spec, constants: RewardConstants | None, permanent_penalty: bool | None) -> HybridAutomaton:
     if not spec.requirements:
-        raise SpecError("the spec has no 'require' statement: nothing to build a hybrid automaton from",
-                        file=spec.path)
+        raise SpecError("the spec has no 'require' statement: nothing to build a hybrid automaton from", file=spec.path)
     plant = spec.plant
     if plant is not None and tuple(plant.state_names[:2]) != ("q", "qdot"):
         raise SpecError(
@@ -328,6 +332,7 @@ def _compile(spec: Spec, constants: RewardConstants | None, permanent_penalty: b
 
     e_names = [MODE_OF[cr.req.name] for cr in crits]
     bands = [cr.s_band for cr in crits if cr.s_band is not None]
+
     def band_of(d: int) -> Guard:
         return all_of(*(f(d) for f in bands))
 

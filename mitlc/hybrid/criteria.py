@@ -26,8 +26,8 @@ A zero step (``q0 == s``) has no overshoot and zero rise time.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Iterable
 
 import numpy as np
 

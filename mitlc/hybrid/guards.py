@@ -10,8 +10,9 @@ q <= 0.9*q0 | t >= 0.6
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Union
+from typing import Any
 
 import numpy as np
 
@@ -80,7 +81,7 @@ class Lin:
         return {"terms": {v: c for v, c in self.terms}, "const": self.const}
 
     @staticmethod
-    def from_dict(d: Mapping[str, Any]) -> "Lin":
+    def from_dict(d: Mapping[str, Any]) -> Lin:
         return Lin(tuple((str(v), float(c)) for v, c in dict(d.get("terms", {})).items()), float(d.get("const", 0.0)))
 
 
@@ -109,7 +110,7 @@ class Cmp:
 class AllOf:
     """Conjunction; ``AllOf(())`` is true."""
 
-    args: tuple["Guard", ...] = ()
+    args: tuple[Guard, ...] = ()
 
     def __str__(self) -> str:
         if not self.args:
@@ -121,7 +122,7 @@ class AllOf:
 class AnyOf:
     """Disjunction; ``AnyOf(())`` is false."""
 
-    args: tuple["Guard", ...] = ()
+    args: tuple[Guard, ...] = ()
 
     def __str__(self) -> str:
         if not self.args:
@@ -129,7 +130,7 @@ class AnyOf:
         return " | ".join(parenthesized(a) for a in self.args)
 
 
-Guard = Union[Cmp, AllOf, AnyOf]
+Guard = Cmp | AllOf | AnyOf
 TRUE: Guard = AllOf(())
 FALSE: Guard = AnyOf(())
 

@@ -1,10 +1,10 @@
-"""Mode-wise rewards of a hybrid automaton: the thesis's building blocks (3-11)/(3-12) as data.
-"""
+"""Mode-wise rewards of a hybrid automaton: the thesis's building blocks (3-11)/(3-12) as data."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping, Union
+from typing import Any
 
 import numpy as np
 
@@ -67,7 +67,7 @@ class StayBonus:
         return f"({fmt_const(self.value)} if stayed)"
 
 
-RewardTerm = Union[Const, AbsError, IfElse, StayBonus]
+RewardTerm = Const | AbsError | IfElse | StayBonus
 
 
 @dataclass(frozen=True, slots=True)

@@ -33,8 +33,8 @@ width 0.5 used to, in SACPN's former closed form).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Sequence
 
 import numpy as np
 

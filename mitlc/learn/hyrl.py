@@ -41,9 +41,9 @@ import dataclasses
 import json
 import math
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -186,7 +186,7 @@ class HyrlSettings:
         return settings_to_dict(self)
 
     @staticmethod
-    def from_dict(d: Mapping) -> "HyrlSettings":
+    def from_dict(d: Mapping) -> HyrlSettings:
         return settings_from_dict(HyrlSettings, d)
 
     def check(self) -> None:
@@ -355,7 +355,7 @@ class HybridLearner:
     def sigma_at(self, trial: int) -> float:
         """Exploration standard deviation of trial ``trial`` (counted from 0)."""
         st = self.settings
-        return max(st.sigma_min, st.sigma * st.sigma_decay ** trial)
+        return max(st.sigma_min, st.sigma * st.sigma_decay**trial)
 
     def exploration_noise(self, n_steps: int, dt: float) -> np.ndarray:
         """This trial's input exploration ``(n_steps, R)``: each run draws ``n_steps``
@@ -405,8 +405,9 @@ class HybridLearner:
             x[r, 1] = g.uniform(vlo, vhi)
         return x
 
-    def policy(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float,
-               run: np.ndarray | None = None) -> np.ndarray:
+    def policy(
+        self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float, run: np.ndarray | None = None
+    ) -> np.ndarray:
         """Greedy input of each row's mode policy, clipped to the input bound; row ``b``
         uses run ``run[b]`` (default: row ``b`` is run ``b``)."""
         run = np.arange(x.shape[0]) if run is None else run
@@ -414,8 +415,9 @@ class HybridLearner:
         u = np.einsum("bf,bf->b", self.xi[run, mode], phi)
         return np.clip(u, -self.u_max, self.u_max)
 
-    def value(self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float,
-              run: np.ndarray | None = None) -> np.ndarray:
+    def value(
+        self, x: np.ndarray, q0: np.ndarray, t: np.ndarray, mode: np.ndarray, tau: float, run: np.ndarray | None = None
+    ) -> np.ndarray:
         """Critic (3-7): general plus mode part of each row; row ``b`` uses run ``run[b]``
         (default: row ``b`` is run ``b``), like :meth:`policy`."""
         run = np.arange(x.shape[0]) if run is None else run
@@ -435,14 +437,15 @@ class HybridLearner:
         start = time.perf_counter()
         try:
             for k in range(trials):
-                self._snapshot = _Snapshot(self.xi.copy(), self.theta.copy(),
-                                           [g.bit_generator.state for g in self.rngs], self.trial)
+                self._snapshot = _Snapshot(
+                    self.xi.copy(), self.theta.copy(), [g.bit_generator.state for g in self.rngs], self.trial
+                )
                 with np.errstate(over="ignore", invalid="ignore"):  # divergence is reported below
                     out[:, k] = self._trial()
                 self._check_finite(out[:, k])
                 self.trial += 1
                 done = k + 1
-                self.returns = np.concatenate([self.returns, out[:, k:k + 1]], axis=1)
+                self.returns = np.concatenate([self.returns, out[:, k : k + 1]], axis=1)
                 if callback is not None:
                     callback(self.trial, out[:, k])
         except KeyboardInterrupt:
@@ -458,7 +461,7 @@ class HybridLearner:
         if s is None or s.trial != self.trial:
             return
         self.xi, self.theta = s.xi, s.theta
-        for g, st in zip(self.rngs, s.rng_states):
+        for g, st in zip(self.rngs, s.rng_states, strict=True):
             g.bit_generator.state = st
         self._snapshot = None
 
@@ -583,9 +586,9 @@ class HybridLearner:
         self.trial = int(meta["trial"])
         self.seed = int(meta["seed"])
         self.wall_s = float(meta.get("wall_s", 0.0))
-        for g, s in zip(self.rngs, meta["rng_states"]):
+        for g, s in zip(self.rngs, meta["rng_states"], strict=True):
             g.bit_generator.state = s
-        for g, s in zip(self.eval_rngs, meta["eval_rng_states"]):
+        for g, s in zip(self.eval_rngs, meta["eval_rng_states"], strict=True):
             g.bit_generator.state = s
 
     def to_bytes(self) -> bytes:
@@ -599,8 +602,6 @@ class HybridLearner:
     def save(self, path: str | Path) -> None:
         """Write the learner's state to ``path`` (.npz) atomically."""
         atomic_write(path, self.to_bytes())
-
-
 
 
 _LEGACY_SETTINGS = {"critic_init": "zero", "qdot_grid": None, "noise_tau": 0.0, "q_warp": 1.0}
@@ -627,8 +628,7 @@ def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
         spec = parse_spec(meta["spec_source"], meta["spec_path"] or None)
     # checkpoints written before these settings existed were trained without them
     saved = {**_LEGACY_SETTINGS, **meta["settings"]}
-    learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]),
-                            seed=int(meta["seed"]))
+    learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]), seed=int(meta["seed"]))
     learner.load_state_dict(data)
     return learner
 
@@ -709,8 +709,9 @@ def _judge(spec_or_automaton: Spec | HybridAutomaton, ro: HybridRollout) -> Verd
     return check(spec_or_automaton, ro.states[:, :, 0], ro.dt)
 
 
-def _grid_evaluation(automaton: HybridAutomaton, runs: int, n_init: int,
-                     roll: Callable[[np.ndarray, np.ndarray], HybridRollout]) -> Evaluation:
+def _grid_evaluation(
+    automaton: HybridAutomaton, runs: int, n_init: int, roll: Callable[[np.ndarray, np.ndarray], HybridRollout]
+) -> Evaluation:
     lo, hi = automaton.q0_range
     q0 = np.linspace(lo, hi, n_init)
     R = runs
@@ -750,8 +751,14 @@ class ComposedController:
     time feed them).  Run ``r`` of the composition uses run ``r`` of every learner.
     """
 
-    def __init__(self, automaton: HybridAutomaton, assignment: Mapping[str, tuple[HybridLearner, str]],
-                 plant: Plant, params: Mapping[str, float], n_steps: int) -> None:
+    def __init__(
+        self,
+        automaton: HybridAutomaton,
+        assignment: Mapping[str, tuple[HybridLearner, str]],
+        plant: Plant,
+        params: Mapping[str, float],
+        n_steps: int,
+    ) -> None:
         self.automaton = automaton
         self.assignment = dict(assignment)
         self.plant, self.params, self.n_steps = plant, dict(params), int(n_steps)
@@ -795,8 +802,14 @@ class ComposedController:
         return _grid_evaluation(self.automaton, self.runs, n_init, self.rollout)
 
 
-def brake_bound(ev: Evaluation, automaton: HybridAutomaton, plant: Plant, params: Mapping[str, float],
-                mode: str = "E_Mp", horizon_s: float = 5.0) -> np.ndarray:
+def brake_bound(
+    ev: Evaluation,
+    automaton: HybridAutomaton,
+    plant: Plant,
+    params: Mapping[str, float],
+    mode: str = "E_Mp",
+    horizon_s: float = 5.0,
+) -> np.ndarray:
     """Whether *any* policy of ``mode`` could still avoid an overshoot, ``(R, n)``.
 
     From the first state of each rollout of ``ev`` in ``mode`` (the state handed
@@ -891,10 +904,13 @@ seed 1, 800 trials: 1 N 0.25 / 0.81, 2 N 0.35 / 0.825, bound 0.35 / 0.83.  See
 docs/hyrl.md."""
 
 
-def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
-                   callback: Callable[[int, np.ndarray], None] | None = None,
-                   sigma: float | None = HANDOVER_SIGMA,
-                   ) -> tuple[ComposedController, HybridLearner]:
+def train_handover(
+    ctl: ComposedController,
+    learner: HybridLearner,
+    trials: int,
+    callback: Callable[[int, np.ndarray], None] | None = None,
+    sigma: float | None = HANDOVER_SIGMA,
+) -> tuple[ComposedController, HybridLearner]:
     """Go on training ``learner``'s policies of the modes it runs in ``ctl`` from the
     states the other modes hand over (beyond the thesis, see docs/hyrl.md).
 
@@ -915,12 +931,12 @@ def train_handover(ctl: ComposedController, learner: HybridLearner, trials: int,
     lrn = copy.deepcopy(learner)
     if sigma is not None:
         lrn.settings = dataclasses.replace(lrn.settings, sigma=float(sigma))
-    assignment = {m: ((lrn if l is learner else l), s) for m, (l, s) in ctl.assignment.items()}
+    assignment = {m: ((lrn if who is learner else who), s) for m, (who, s) in ctl.assignment.items()}
     new = ComposedController(ctl.automaton, assignment, ctl.plant, ctl.params, ctl.n_steps)
     if new.runs != lrn.runs:
         raise TrainingError("train_handover: every learner of the composition needs the same number of runs")
     A, plant, params = ctl.automaton, ctl.plant, ctl.params
-    src = np.array([lrn.automaton.index(s) if l is lrn else -1 for l, s in (assignment[m] for m in A.names)])
+    src = np.array([lrn.automaton.index(s) if who is lrn else -1 for who, s in (assignment[m] for m in A.names)])
     st = lrn.settings
     R, N = lrn.runs, ctl.n_steps
     dt, u_max = float(params["dt"]), float(params["u_max"])

@@ -7,7 +7,7 @@ renders one, and only the CLI writes files.
 from __future__ import annotations
 
 import io
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -48,8 +48,7 @@ def learning_curve(returns: np.ndarray, title: str = "", label: str | None = Non
     mean = returns.mean(axis=0)
     lo, hi = np.percentile(returns, [10, 90], axis=0) if returns.shape[0] > 1 else (mean, mean)
     line = ax.plot(trials, mean, lw=1.5, label=label or f"mean of {returns.shape[0]} runs", color=color)[0]
-    ax.fill_between(trials, lo, hi, alpha=0.2, color=line.get_color(), lw=0,
-                    label=None if label else "10-90 % of runs")
+    ax.fill_between(trials, lo, hi, alpha=0.2, color=line.get_color(), lw=0, label=None if label else "10-90 % of runs")
     if title:
         ax.set_title(title)
     ax.legend(loc="lower right", fontsize=8)
@@ -59,9 +58,17 @@ def learning_curve(returns: np.ndarray, title: str = "", label: str | None = Non
 _PALETTE = ["#c8e6c9", "#ffcdd2", "#fff9c4", "#bbdefb", "#e1bee7", "#ffe0b2", "#d7ccc8", "#cfd8dc"]
 
 
-def rollout_figure(states: np.ndarray, actions: np.ndarray, regions: np.ndarray, region_names: Sequence[str],
-                   dt: float, state_names: Sequence[str], u_max: float | None = None, title: str = "",
-                   verdicts: Sequence[bool] | None = None):
+def rollout_figure(
+    states: np.ndarray,
+    actions: np.ndarray,
+    regions: np.ndarray,
+    region_names: Sequence[str],
+    dt: float,
+    state_names: Sequence[str],
+    u_max: float | None = None,
+    title: str = "",
+    verdicts: Sequence[bool] | None = None,
+):
     """State, velocity and input against time for a few rollouts.
 
     ``states (B, N+1, n)``, ``actions (B, N)``; ``regions (B, N+1)`` indexes
@@ -77,25 +84,37 @@ def rollout_figure(states: np.ndarray, actions: np.ndarray, regions: np.ndarray,
     ends = np.r_[starts[1:], N1]
     used = set()
     for ax in axes:
-        for s, e in zip(starts, ends):
+        for s, e in zip(starts, ends, strict=True):
             j = int(reg[s])
             lab = region_names[j] if j not in used and ax is axes[0] else None
             if lab:
                 used.add(j)
-            ax.axvspan(t[s] - dt / 2, t[min(e, N1 - 1)] + dt / 2 if e < N1 else t[-1],
-                       color=_PALETTE[j % len(_PALETTE)], lw=0, label=lab)
+            ax.axvspan(
+                t[s] - dt / 2,
+                t[min(e, N1 - 1)] + dt / 2 if e < N1 else t[-1],
+                color=_PALETTE[j % len(_PALETTE)],
+                lw=0,
+                label=lab,
+            )
     for i in range(n):
         for b in range(B):
             style = "-" if verdicts is None or verdicts[b] else "--"
             y = states[b, :, i].copy()
             if state_names[i] == "q":  # do not draw the jump from pi to -pi
                 y[1:][np.abs(np.diff(y)) > np.pi] = np.nan
-            axes[i].plot(t, y, style, lw=1.2 if b == 0 else 0.7, color="k" if b == 0 else None,
-                         alpha=1.0 if b == 0 else 0.6)
+            axes[i].plot(
+                t, y, style, lw=1.2 if b == 0 else 0.7, color="k" if b == 0 else None, alpha=1.0 if b == 0 else 0.6
+            )
         axes[i].set_ylabel(state_names[i])
     for b in range(B):
-        axes[-1].step(t[:-1], actions[b], where="post", lw=1.0 if b == 0 else 0.6,
-                      color="k" if b == 0 else None, alpha=1.0 if b == 0 else 0.6)
+        axes[-1].step(
+            t[:-1],
+            actions[b],
+            where="post",
+            lw=1.0 if b == 0 else 0.6,
+            color="k" if b == 0 else None,
+            alpha=1.0 if b == 0 else 0.6,
+        )
     if u_max is not None:
         axes[-1].set_ylim(-1.1 * u_max, 1.1 * u_max)
     axes[-1].set_ylabel("u")

@@ -55,7 +55,7 @@ two table look-ups.  The tables are built *from* the direct rule, and
 
 from __future__ import annotations
 
-from typing import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -78,7 +78,7 @@ def _clock_ok(interval: A.Interval, tau: np.ndarray | float) -> np.ndarray | boo
 
 def compile_predicate(p: P.Pred, columns: Mapping[str, int]) -> Callable[[np.ndarray], np.ndarray | float]:
     """A predicate as one closure over a state batch ``x`` ``(R, n)`` (columns by variable name)."""
-    return P.compile_numpy(p, lambda name: (lambda x, i=columns[name]: x[:, i]))
+    return P.compile_numpy(p, lambda name: lambda x, i=columns[name]: x[:, i])
 
 
 class NetRuntime:
@@ -136,7 +136,9 @@ class NetRuntime:
             for local, p in enumerate(places):
                 self._place_weight[p] = local * strides[s]
                 self._place_subnet[p] = s
-        self._atom_bits = (np.int64(1) << np.arange(len(self.atoms), dtype=np.int64)) if self.atoms else np.zeros(0, np.int64)
+        self._atom_bits = (
+            (np.int64(1) << np.arange(len(self.atoms), dtype=np.int64)) if self.atoms else np.zeros(0, np.int64)
+        )
 
         # state sub-nets: the region of each place (the state guard into it)
         self._region_of: dict[int, A.Formula] = {}
@@ -161,7 +163,7 @@ class NetRuntime:
         x = np.asarray(x, dtype=float)
         env = {name: x[:, i] for name, i in self._columns.items()}
         out = {}
-        for atom, pred in zip(self.atoms, self._preds):
+        for atom, pred in zip(self.atoms, self._preds, strict=True):
             out[atom] = np.broadcast_to(np.asarray(P.evaluate(pred, env), dtype=bool), x.shape[:1])
         return out
 
@@ -218,9 +220,16 @@ class NetRuntime:
 
     def marked_places(self, code: np.ndarray) -> np.ndarray:
         """Codes ``(R,)`` to the marked place of every sub-net, ``(R, S)`` place indices."""
-        return self.tables.marked[np.asarray(code)] if self.tables is not None else np.stack(
-            [self.subnet_places[s][(np.asarray(code) // self._strides[s]) % self._sizes[s]] for s in range(self.n_subnets)],
-            axis=1,
+        return (
+            self.tables.marked[np.asarray(code)]
+            if self.tables is not None
+            else np.stack(
+                [
+                    self.subnet_places[s][(np.asarray(code) // self._strides[s]) % self._sizes[s]]
+                    for s in range(self.n_subnets)
+                ],
+                axis=1,
+            )
         )
 
     # ------------------------------------------------------------ the rule itself
@@ -265,7 +274,7 @@ class NetRuntime:
         n = x0.shape[0]
         M = np.tile(np.asarray(self.net.M0, dtype=np.int64), (n, 1))
         truth = self.truth(x0)
-        for sub, places in zip(self.net.subnets, self.subnet_places):
+        for sub, places in zip(self.net.subnets, self.subnet_places, strict=True):
             if sub.kind != "state":
                 continue
             placed = np.zeros(n, dtype=bool)
@@ -331,7 +340,7 @@ class NetRuntime:
             return self.reward(self.decode(code_prev), self.decode(code_next))
         return self.tables.reward[code_prev, code_next]
 
-    def _build_tables(self) -> "_Tables | None":
+    def _build_tables(self) -> _Tables | None:
         n_atoms, n_clocks, n_codes = len(self.atoms), len(self.clocks), self.n_codes
         n_atom_codes, n_clock_codes = 1 << n_atoms, 1 << n_clocks
         if n_clock_codes * n_codes * n_atom_codes > MAX_TABLE or n_codes * n_codes > MAX_TABLE:
@@ -348,9 +357,14 @@ class NetRuntime:
             clock_truth = [bool((ck >> i) & 1) for i in range(n_clocks)]
             nxt = self._fire(M, self._guards(truth, clock_truth, M.shape[0]))
             next_code[ck] = self.encode(nxt).reshape(n_codes, n_atom_codes)
-        marked = np.stack(
-            [self.subnet_places[s][(codes // self._strides[s]) % self._sizes[s]] for s in range(self.n_subnets)], axis=1
-        ) if self.n_subnets else np.zeros((n_codes, 0), dtype=np.intp)
+        marked = (
+            np.stack(
+                [self.subnet_places[s][(codes // self._strides[s]) % self._sizes[s]] for s in range(self.n_subnets)],
+                axis=1,
+            )
+            if self.n_subnets
+            else np.zeros((n_codes, 0), dtype=np.intp)
+        )
         # a counter grows when a transition feeding it fires, i.e. when its sub-net's
         # token moves from the transition's input to its one-token output
         counter_inc = np.zeros((n_codes, n_codes, len(self.counters)), dtype=np.int64)
@@ -373,7 +387,7 @@ class NetRuntime:
         if self.counters.size:  # the table assumes the reward sees counters only through p - ~p
             prev[:, self.counters] += 7
             now[:, self.counters] += 7
-            for e, tab in zip(exprs, tabs):
+            for e, tab in zip(exprs, tabs, strict=True):
                 if not np.array_equal(np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes), tab):
                     return None
         reward = tabs[0]
@@ -388,8 +402,9 @@ class _Tables:
 
     __slots__ = ("next_code", "reward", "charge", "marked", "counter_inc")
 
-    def __init__(self, next_code: np.ndarray, reward: np.ndarray, charge: np.ndarray, marked: np.ndarray,
-                 counter_inc: np.ndarray) -> None:
+    def __init__(
+        self, next_code: np.ndarray, reward: np.ndarray, charge: np.ndarray, marked: np.ndarray, counter_inc: np.ndarray
+    ) -> None:
         self.next_code = next_code  # (clock codes, marking codes, atom codes) -> marking code
         self.reward = reward  # (marking codes, marking codes) -> r(M_k, M_k+1)
         self.charge = charge  # (marking codes, marking codes) -> what the penalty c multiplies (0 with off)

@@ -52,9 +52,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping
 
 import numpy as np
 
@@ -140,7 +140,7 @@ class SacpnSettings:
         return settings_to_dict(self)
 
     @staticmethod
-    def from_dict(d: Mapping) -> "SacpnSettings":
+    def from_dict(d: Mapping) -> SacpnSettings:
         return settings_from_dict(SacpnSettings, d)
 
     def check(self) -> None:
@@ -242,8 +242,9 @@ class Sacpn:
         self._known = rs.options.violations == "permanent" and settings.violation_value == "known"
         if self._known:
             self._pen = rs.penalty * tables.charge.max(axis=0)
-            self._pen_left = np.array([sum(settings.gamma ** j for j in range(self.n_steps - k))
-                                       for k in range(self.n_steps + 1)])
+            self._pen_left = np.array(
+                [sum(settings.gamma**j for j in range(self.n_steps - k)) for k in range(self.n_steps + 1)]
+            )
         self._marked_c = self._marked if self._known else tables.marked
         self.n_tokens = len(acting)
         self.n_tokens_c = self._marked_c.shape[1]
@@ -307,8 +308,9 @@ class Sacpn:
         return np.einsum("rkf,rf->r", rows, phi) / self.n_tokens_c
 
     # ------------------------------------------------------------ training
-    def train(self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None,
-              total: int | None = None) -> np.ndarray:
+    def train(
+        self, trials: int, callback: Callable[[int, np.ndarray], None] | None = None, total: int | None = None
+    ) -> np.ndarray:
         """Run ``trials`` more trials on every run; returns their returns ``(R, trials)``.
 
         ``total``: the trials this learner is meant to run in all, counting those
@@ -326,13 +328,14 @@ class Sacpn:
         done = 0
         try:
             for t in range(trials):
-                self._snapshot = _Snapshot(self.xi.copy(), self.theta.copy(),
-                                           [g.bit_generator.state for g in self.rngs], self.trial)
+                self._snapshot = _Snapshot(
+                    self.xi.copy(), self.theta.copy(), [g.bit_generator.state for g in self.rngs], self.trial
+                )
                 out[:, t] = self._trial()
                 self._check_finite()
                 self.trial += 1
                 done = t + 1
-                self.returns = np.concatenate([self.returns, out[:, t:t + 1]], axis=1)
+                self.returns = np.concatenate([self.returns, out[:, t : t + 1]], axis=1)
                 if callback is not None:
                     callback(self.trial, out[:, t])
         except KeyboardInterrupt:
@@ -346,7 +349,7 @@ class Sacpn:
         if s is None or s.trial != self.trial:
             return
         self.xi, self.theta = s.xi, s.theta
-        for g, st in zip(self.rngs, s.rng_states):
+        for g, st in zip(self.rngs, s.rng_states, strict=True):
             g.bit_generator.state = st
         self._snapshot = None
 
@@ -383,8 +386,13 @@ class Sacpn:
         current = st.mask == "current"
         applied = st.saturation == "applied"
         inv_k, inv_kc = 1.0 / K, 1.0 / KC
-        minimum, maximum, add, subtract, multiply, matmul = (
-            np.minimum, np.maximum, np.add, np.subtract, np.multiply, np.matmul)
+        minimum, maximum, add, subtract, multiply = (
+            np.minimum,
+            np.maximum,
+            np.add,
+            np.subtract,
+            np.multiply,
+        )
 
         xt = np.empty((len(self.plant.state), R))  # rows are contiguous: cheap column access
         x = xt.T
@@ -571,9 +579,7 @@ class Sacpn:
         meta = json.loads(str(d["meta"]))
         shape = (self.runs, self.n_places, self.n_features)
         if meta["runs"] != self.runs or tuple(d["xi"].shape) != shape:
-            raise InputError(
-                f"checkpoint holds {meta['runs']} runs of shape {tuple(d['xi'].shape)}, expected {shape}"
-            )
+            raise InputError(f"checkpoint holds {meta['runs']} runs of shape {tuple(d['xi'].shape)}, expected {shape}")
         if meta["places"] != list(self.rs.net.place_names):
             raise InputError("checkpoint was trained on a different reward net")
         self.xi = np.array(d["xi"], dtype=float)
@@ -582,9 +588,9 @@ class Sacpn:
         self.trial = int(meta["trial"])
         self.ramp_trials = meta.get("ramp_trials")
         self.seed = int(meta["seed"])
-        for g, s in zip(self.rngs, meta["rng_states"]):
+        for g, s in zip(self.rngs, meta["rng_states"], strict=True):
             g.bit_generator.state = s
-        for g, s in zip(self.eval_rngs, meta["eval_rng_states"]):
+        for g, s in zip(self.eval_rngs, meta["eval_rng_states"], strict=True):
             g.bit_generator.state = s
 
     def save(self, path: str | Path) -> None:
@@ -606,5 +612,3 @@ def read_meta(path: str | Path) -> dict:
             return json.loads(str(d["meta"]))
     except (OSError, KeyError, ValueError) as exc:
         raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
-
-

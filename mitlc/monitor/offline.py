@@ -50,9 +50,10 @@ with the trace length, not with length x window.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import singledispatch
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -64,7 +65,6 @@ from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
 
 __all__ = ["MonitorResult", "monitor", "signals", "offsets", "state_columns", "needed_variables", "TIME_TOL"]
-
 
 
 # ----------------------------------------------------------------- result
@@ -113,7 +113,7 @@ def _(p: P.Compare, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tu
     values = [np.broadcast_to(np.asarray(P.evaluate(o, env), dtype=float), shape) for o in p.operands]
     truth = np.ones(shape, dtype=bool)
     rob = np.full(shape, np.inf)
-    for op, a, b in zip(p.ops, values, values[1:]):
+    for op, a, b in zip(p.ops, values, values[1:], strict=False):
         if op not in _CMP:  # pragma: no cover - the grammar only has these
             raise CompileError(f"unknown comparison '{op}'")
         truth = truth & _CMP[op](a, b)
@@ -319,7 +319,7 @@ def _junction(value: np.ndarray, decisive: bool, sides: tuple[A.Formula, ...], e
     decisive side when it has that value, else when both sides are settled."""
     s = [ev.settle(x) for x in sides]
     v = [ev.sig(x, BOOL) for x in sides]
-    earliest = np.minimum(*(np.where(vi == decisive, si, _INF) for vi, si in zip(v, s)))
+    earliest = np.minimum(*(np.where(vi == decisive, si, _INF) for vi, si in zip(v, s, strict=True)))
     return np.where(value == decisive, earliest, np.maximum(*s))
 
 

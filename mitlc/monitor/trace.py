@@ -26,7 +26,9 @@ UNIFORM_TOL = 1e-3
 class Trace:
     """A loaded trace: sample times and one array per column."""
 
-    def __init__(self, path: str, t: np.ndarray, columns: dict[str, np.ndarray], lines: list[int] | None = None) -> None:
+    def __init__(
+        self, path: str, t: np.ndarray, columns: dict[str, np.ndarray], lines: list[int] | None = None
+    ) -> None:
         self.path = path
         self.t = t
         self.columns = columns
@@ -54,9 +56,7 @@ def _read_csv(path: str, needed: tuple[str, ...]) -> Trace:
             raise InputError(f"duplicate column '{name}'", file=path, line=head_line)
     for want in ("t",) + needed:
         if want not in names:
-            raise InputError(
-                f"missing column '{want}'", file=path, line=head_line, hint=f"columns: {', '.join(names)}"
-            )
+            raise InputError(f"missing column '{want}'", file=path, line=head_line, hint=f"columns: {', '.join(names)}")
     idx = {name: names.index(name) for name in ("t",) + needed}
     data = {name: np.empty(len(rows) - 1) for name in idx}
     lines = []
@@ -120,11 +120,15 @@ def _read_npz(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> Tra
         if not np.issubdtype(a.dtype, np.number) or a.dtype.kind == "c":
             raise InputError(f"array '{name}' does not hold real numbers ({a.dtype})", file=path)
         if a.shape != t.shape:
-            raise InputError(f"array '{name}' has {a.shape[0] if a.ndim else 0} samples, 't' has {t.shape[0]}", file=path)
+            raise InputError(
+                f"array '{name}' has {a.shape[0] if a.ndim else 0} samples, 't' has {t.shape[0]}", file=path
+            )
         bad = ~np.isfinite(a.astype(float))
         if bad.any():
             k = int(np.argmax(bad))
-            raise InputError(f"array '{name}' holds a value that is not a finite number at sample {k}: {a[k]}", file=path)
+            raise InputError(
+                f"array '{name}' holds a value that is not a finite number at sample {k}: {a[k]}", file=path
+            )
     return Trace(path, t.astype(float), {n: a.astype(float) for n, a in columns.items()})
 
 
@@ -143,9 +147,7 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
     steps = np.diff(t)
     if (steps <= 0).any():
         k = int(np.argmax(steps <= 0)) + 1
-        raise InputError(
-            f"time must increase: t = {t[k]:g} after t = {t[k - 1]:g}", file=path, line=trace.line(k)
-        )
+        raise InputError(f"time must increase: t = {t[k]:g} after t = {t[k - 1]:g}", file=path, line=trace.line(k))
     uneven = np.abs(steps - steps[0]) > UNIFORM_TOL * steps[0]
     if uneven.any():
         k = int(np.argmax(uneven)) + 1

@@ -77,7 +77,7 @@ class CompileOptions:
     their violations and each costs that once (docs/semantics.md, section 6)."""
 
     @staticmethod
-    def from_spec(spec: Spec, **overrides: str | None) -> "CompileOptions":
+    def from_spec(spec: Spec, **overrides: str | None) -> CompileOptions:
         values = {"conjunction": spec.option("conjunction"), "violations": spec.option("violations")}
         values.update({k: v for k, v in overrides.items() if v is not None})
         return CompileOptions(**values)
@@ -128,7 +128,7 @@ class _Builder(ViolationWatches):
         self.state: list[Part] = [region_net(spec, g, self._unique) for g in self.groups]
         # atom -> (places where it holds, places where it does not)
         self.where: dict[str, tuple[list[str], list[str]]] = {}
-        for g, sub in zip(self.groups, self.state):
+        for g, sub in zip(self.groups, self.state, strict=True):
             all_names = [n for n, _ in sub.places]
             for a in g:
                 pos = [f"p_{a}"]
@@ -245,8 +245,9 @@ class _Builder(ViolationWatches):
         phase = self._phase(f.interval) if self.segments else ctx
         inner_ctx = (phase & ctx) or ctx
         if conj and is_state_formula(f.child) and (phase & ctx or not self.segments):
-            self._watch(f"G_{self._label(f.child, '')}", negate_state(strip_weights(f.child)), inner_ctx, str(f),
-                        counted=True)
+            self._watch(
+                f"G_{self._label(f.child, '')}", negate_state(strip_weights(f.child)), inner_ctx, str(f), counted=True
+            )
         return self._gate(phase, ctx, self._bonus(f.child, inner_ctx, True))
 
     def _eventually(self, f: A.Eventually, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
@@ -258,12 +259,23 @@ class _Builder(ViolationWatches):
                 return R.ZERO
             factors.append(self._seg_tokens(window, prev=True))
         inner = self.reward(f.child, ctx, under_g)
-        if conj and not timed and isinstance(f.child, A.Globally) and f.child.interval.is_unbounded \
-                and is_state_formula(f.child.child) and self.end is not None:
+        if (
+            conj
+            and not timed
+            and isinstance(f.child, A.Globally)
+            and f.child.interval.is_unbounded
+            and is_state_formula(f.child.child)
+            and self.end is not None
+        ):
             # F G phi on a finite trial: phi must hold at the last sample
             end = A.Interval(self.end, math.inf)
-            self._watch(f"FG_{self._label(f.child.child, '')}", negate_state(strip_weights(f.child.child)), None,
-                        str(f), clock=end)
+            self._watch(
+                f"FG_{self._label(f.child.child, '')}",
+                negate_state(strip_weights(f.child.child)),
+                None,
+                str(f),
+                clock=end,
+            )
         if is_state_formula(f.child) and not under_g:
             key = ("eventually", strip_weights(f.child), f.interval)
             if key not in self.cache:
@@ -272,8 +284,15 @@ class _Builder(ViolationWatches):
                 done = self._unique(f"p_done_{label}")
                 guard = Guard((GuardTerm(strip_weights(f.child), f.interval if timed else None),))
                 self.timing.append(
-                    Part(f"eventually {label}", "timing", "eventually",
-                         [(pending, f"tau,{label}"), (done, f"done,{label}")], [(0, 1, guard)], 0, str(f))
+                    Part(
+                        f"eventually {label}",
+                        "timing",
+                        "eventually",
+                        [(pending, f"tau,{label}"), (done, f"done,{label}")],
+                        [(0, 1, guard)],
+                        0,
+                        str(f),
+                    )
                 )
                 self.cache[key] = [pending, done]
             if conj:
@@ -291,8 +310,9 @@ class _Builder(ViolationWatches):
             before = frozenset(range(k)) & ctx
             after = frozenset(range(k, len(self.segments))) & ctx
             if conj and before and is_state_formula(f.left):
-                self._watch(f"U_{self._label(f.left, '')}", negate_state(strip_weights(f.left)), before, str(f),
-                            counted=True)
+                self._watch(
+                    f"U_{self._label(f.left, '')}", negate_state(strip_weights(f.left)), before, str(f), counted=True
+                )
             terms: list[R.RExpr] = []
             for phase, side in ((before, f.left), (after, f.right)):
                 if not phase:
@@ -322,7 +342,9 @@ class _Builder(ViolationWatches):
                 arcs.append((0, 1, Guard(tuple(switch + ([deadline] if deadline and switch[0].state else [])))))
             else:
                 if deadline is not None:  # met only within the interval (a late trigger fails)
-                    switch = [GuardTerm(switch[0].state, A.Interval(0.0, f.interval.hi, hi_closed=f.interval.hi_closed))]
+                    switch = [
+                        GuardTerm(switch[0].state, A.Interval(0.0, f.interval.hi, hi_closed=f.interval.hi_closed))
+                    ]
                 arcs.append((0, 1, Guard(tuple(switch))))
                 fail: list[GuardTerm] = []
                 if left_cond is not None and key[1] != A.Const(True):
@@ -365,12 +387,19 @@ class _Builder(ViolationWatches):
                 n = len(names)
                 arcs = [(j, (j + 1) % n, Guard.state(strip_weights(phi))) for j, (_, (_, phi)) in enumerate(cyc)]
                 self.timing.append(
-                    Part("recurrence", "timing", "recurrence", [(nm, f"tau,{lab}") for nm, lab in zip(names, labels)],
-                         arcs, 0, " & ".join(str(parts[i]) for i, _ in cyc))
+                    Part(
+                        "recurrence",
+                        "timing",
+                        "recurrence",
+                        [(nm, f"tau,{lab}") for nm, lab in zip(names, labels, strict=True)],
+                        arcs,
+                        0,
+                        " & ".join(str(parts[i]) for i, _ in cyc),
+                    )
                 )
                 self.cache[key] = names
             names = self.cache[key]
-            for (i, (w, phi)), name in zip(cyc, names):
+            for (i, (w, phi)), name in zip(cyc, names, strict=True):
                 terms[i] = R.Gated(tokens([name], prev=True), R.scale(w, self._bonus(phi, ctx, True)))
         for i, p in enumerate(parts):
             if i not in terms:
@@ -395,9 +424,15 @@ class _Builder(ViolationWatches):
                 transitions.append((f"t{len(transitions) + 1}", guard, sub.places[src][0], outs, s_idx))
             own = [base + k for k in range(len(sub.places))]
             subnets.append(
-                SubNet(sub.name, sub.kind, sub.role, tuple(i for k, i in enumerate(own) if k not in sub.counters),
-                       tuple(range(t_base, len(transitions))), sub.formula,
-                       tuple(i for k, i in enumerate(own) if k in sub.counters))
+                SubNet(
+                    sub.name,
+                    sub.kind,
+                    sub.role,
+                    tuple(i for k, i in enumerate(own) if k not in sub.counters),
+                    tuple(range(t_base, len(transitions))),
+                    sub.formula,
+                    tuple(i for k, i in enumerate(own) if k in sub.counters),
+                )
             )
         index = {p.name: i for i, p in enumerate(places)}
         d_minus = np.zeros((len(transitions), len(places)), dtype=np.int64)

@@ -54,9 +54,7 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
         "normal_form": str(rs.normal_form),
         "options": {"conjunction": rs.options.conjunction, "violations": rs.options.violations},
         "penalty": rs.penalty,
-        "places": [
-            {"name": p.name, "kind": p.kind, "subnet": p.subnet, "label": p.label} for p in net.places
-        ],
+        "places": [{"name": p.name, "kind": p.kind, "subnet": p.subnet, "label": p.label} for p in net.places],
         "transitions": [
             {
                 "name": t.name,
@@ -122,8 +120,8 @@ def to_text(rs: RewardSystem) -> str:
     if net.transitions:
         widths = [len(p.name) for p in net.places]
         out.append("  " + " " * tw + "  " + "  ".join(p.name for p in net.places))
-        for t, row in zip(net.transitions, net.D):
-            cells = "  ".join(f"{int(v):>{w}d}" for v, w in zip(row, widths))
+        for t, row in zip(net.transitions, net.D, strict=True):
+            cells = "  ".join(f"{int(v):>{w}d}" for v, w in zip(row, widths, strict=True))
             out.append(f"  {t.name.ljust(tw)}  {cells}")
     else:
         out.append("  (no transitions)")
@@ -191,8 +189,10 @@ def to_networkx(rs: RewardSystem) -> nx.DiGraph:
     >>> from mitlc.spec.parse import parse_spec
     >>> from mitlc.petri.compile import compile_spec
     >>> g = to_networkx(compile_spec(parse_spec("prop a = x < 1\\nformula G a")))
-    >>> g.nodes["p_a"], g.nodes["t1"], list(g.edges("t1", data=True))
-    ({'bipartite': 0, 'kind': 'state', 'tokens': 0, 'subnet': 0, 'label': 'a'}, {'bipartite': 1, 'guard': '!a', 'subnet': 0}, [('t1', 'p_not_a', {'weight': 1})])
+    >>> g.nodes["p_a"]
+    {'bipartite': 0, 'kind': 'state', 'tokens': 0, 'subnet': 0, 'label': 'a'}
+    >>> g.nodes["t1"], list(g.edges("t1", data=True))
+    ({'bipartite': 1, 'guard': '!a', 'subnet': 0}, [('t1', 'p_not_a', {'weight': 1})])
     """
     net = rs.net
     g = nx.DiGraph(formula=str(rs.spec.formula))

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -51,7 +51,8 @@ def clock_text(interval: A.Interval) -> str:
     lo_text = "" if lo == 0 and interval.lo_closed else f"tau {'>=' if interval.lo_closed else '>'} {fmt_number(lo)}"
     hi_text = "" if math.isinf(hi) else f"tau {'<=' if interval.hi_closed else '<'} {fmt_number(hi)}"
     if lo_text and hi_text:
-        return f"{fmt_number(lo)} {'<=' if interval.lo_closed else '<'} tau {'<=' if interval.hi_closed else '<'} {fmt_number(hi)}"
+        lo_op, hi_op = "<=" if interval.lo_closed else "<", "<=" if interval.hi_closed else "<"
+        return f"{fmt_number(lo)} {lo_op} tau {hi_op} {fmt_number(hi)}"
     return lo_text or hi_text or "true"
 
 
@@ -98,11 +99,11 @@ class Guard:
     terms: tuple[GuardTerm, ...]
 
     @staticmethod
-    def state(f: A.Formula) -> "Guard":
+    def state(f: A.Formula) -> Guard:
         return Guard((GuardTerm(state=f),))
 
     @staticmethod
-    def clock(interval: A.Interval) -> "Guard":
+    def clock(interval: A.Interval) -> Guard:
         return Guard((GuardTerm(clock=interval),))
 
     @property

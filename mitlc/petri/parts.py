@@ -7,8 +7,8 @@ one :class:`~mitlc.petri.net.Net`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 from mitlc.petri import reward as R
 from mitlc.petri.net import Guard

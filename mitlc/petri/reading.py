@@ -10,7 +10,17 @@ from mitlc.errors import CompileError
 from mitlc.spec import ast as A
 from mitlc.spec.passes import is_state_formula, push_negations
 
-__all__ = ["negate_state", "reward_reading", "strip_weights", "peel_weights", "flatten", "recurrence", "conjoin", "disjoin", "trigger"]
+__all__ = [
+    "negate_state",
+    "reward_reading",
+    "strip_weights",
+    "peel_weights",
+    "flatten",
+    "recurrence",
+    "conjoin",
+    "disjoin",
+    "trigger",
+]
 
 
 def reward_reading(f: A.Formula) -> A.Formula:

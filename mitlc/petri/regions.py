@@ -4,7 +4,7 @@ region net per group (thesis section 4-2, net C-2)."""
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from mitlc.petri.net import Guard
 from mitlc.petri.parts import Part
@@ -59,14 +59,10 @@ def region_net(spec: Spec, group: tuple[str, ...], unique: Callable[[str], str])
             for a in group[1:]:
                 none = A.And(none, A.Not(A.Atom(a)))
             regions.append(none)
-    arcs = [
-        (i, j, Guard.state(regions[j]))
-        for i in range(len(places))
-        for j in range(len(places))
-        if i != j
-    ]
+    arcs = [(i, j, Guard.state(regions[j])) for i in range(len(places)) for j in range(len(places)) if i != j]
     initial = initial_region(spec, group)
     return Part(f"region({', '.join(group)})", "state", "region", places, arcs, initial)
+
 
 def initial_region(spec: Spec, group: tuple[str, ...]) -> int:
     """The place marked first: the region of the centre of the spec's initial set."""
@@ -77,6 +73,7 @@ def initial_region(spec: Spec, group: tuple[str, ...]) -> int:
             if all(v.name in point for v in P.variables(pred)) and bool(P.evaluate(pred, point)):
                 return i
     return len(group) if not covers(spec, group) else 0
+
 
 def init_point(spec: Spec) -> dict[str, float] | None:
     """The centre of the spec's initial set (angles wrapped), None without an ``init``."""

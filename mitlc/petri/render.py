@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import graphviz
 
-from mitlc.petri.compile import RewardSystem
 from mitlc.errors import InputError
+from mitlc.petri.compile import RewardSystem
 
 __all__ = ["to_digraph", "render_bytes"]
 
@@ -35,31 +35,58 @@ def _place_label(name: str, tokens: int) -> str:
 
 def to_digraph(rs: RewardSystem, title: str | None = None) -> graphviz.Digraph:
     net = rs.net
-    g = graphviz.Digraph("net", graph_attr={
-        "rankdir": "LR",
-        "fontname": "Helvetica",
-        "label": title if title is not None else str(rs.spec.formula),
-        "labelloc": "t",
-        "fontsize": "16",
-        "nodesep": "0.35",
-        "ranksep": "0.45",
-    })
+    g = graphviz.Digraph(
+        "net",
+        graph_attr={
+            "rankdir": "LR",
+            "fontname": "Helvetica",
+            "label": title if title is not None else str(rs.spec.formula),
+            "labelloc": "t",
+            "fontsize": "16",
+            "nodesep": "0.35",
+            "ranksep": "0.45",
+        },
+    )
     g.attr("node", fontname="Helvetica")
     g.attr("edge", arrowsize="0.6")
     for s_idx, sub in enumerate(net.subnets):
         fill, line = _COLORS.get(sub.kind, ("#f3f4f6", "#374151"))
         with g.subgraph(name=f"cluster_{s_idx}") as c:
-            c.attr(label=f"{sub.kind}: {sub.name}", style="rounded,filled", fillcolor=fill, color=line,
-                   fontcolor=line, fontsize="11")
+            c.attr(
+                label=f"{sub.kind}: {sub.name}",
+                style="rounded,filled",
+                fillcolor=fill,
+                color=line,
+                fontcolor=line,
+                fontsize="11",
+            )
             for i in sub.places:
                 p = net.places[i]
-                c.node(f"P{i}", label=_place_label(p.name, int(net.M0[i])), xlabel=p.name, shape="circle",
-                       width="0.45", fixedsize="true", style="filled", fillcolor="white", color=line,
-                       fontsize="14")
+                c.node(
+                    f"P{i}",
+                    label=_place_label(p.name, int(net.M0[i])),
+                    xlabel=p.name,
+                    shape="circle",
+                    width="0.45",
+                    fixedsize="true",
+                    style="filled",
+                    fillcolor="white",
+                    color=line,
+                    fontsize="14",
+                )
             for t_idx in sub.transitions:
                 t = net.transitions[t_idx]
-                c.node(f"T{t_idx}", label="", xlabel=f"{t.name}: {t.guard}", shape="box", width="0.08",
-                       height="0.4", style="filled", fillcolor="black", fontsize="9")
+                c.node(
+                    f"T{t_idx}",
+                    label="",
+                    xlabel=f"{t.name}: {t.guard}",
+                    shape="box",
+                    width="0.08",
+                    height="0.4",
+                    style="filled",
+                    fillcolor="black",
+                    fontsize="9",
+                )
     index = {p.name: i for i, p in enumerate(net.places)}
     for t_idx, t in enumerate(net.transitions):
         for p in t.inputs:

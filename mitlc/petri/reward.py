@@ -37,7 +37,7 @@ class RExpr:
         raise NotImplementedError
 
     @property
-    def children(self) -> tuple["RExpr", ...]:
+    def children(self) -> tuple[RExpr, ...]:
         return ()
 
 
@@ -74,7 +74,7 @@ class Tokens(RExpr):
     prev: bool = False
     prec = _ATOM
 
-    def previous(self) -> "Tokens":
+    def previous(self) -> Tokens:
         return Tokens(self.places, self.names, True)
 
     def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:

@@ -5,8 +5,8 @@ between the interval ends of the formula (the thesis's absolute-clock reading, n
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 from mitlc.petri.net import Guard
 from mitlc.petri.parts import Part

@@ -6,7 +6,8 @@ eventually whose deadline passed, and the bounds of the reward that size the pen
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -62,8 +63,15 @@ class ViolationWatches:
         th = self.thresholds[last]
         return A.Interval(lo, th.value, lo_closed, th.strict)
 
-    def _watch(self, label: str, bad: A.Formula, segs: frozenset[int] | None, text: str,
-               counted: bool = False, clock: A.Interval | None = None) -> None:
+    def _watch(
+        self,
+        label: str,
+        bad: A.Formula,
+        segs: frozenset[int] | None,
+        text: str,
+        counted: bool = False,
+        clock: A.Interval | None = None,
+    ) -> None:
         """A violation sub-net: it records that ``bad`` held while the part was active."""
         mode = self.options.violations
         if mode == "off":
@@ -76,16 +84,32 @@ class ViolationWatches:
         ok = self._unique(f"p_ok_{label}")
         if mode == "counted" and counted:
             bad_place, count = self._unique(f"p_bad_{label}"), self._unique(f"p_count_{label}")
-            back = Guard((GuardTerm(negate_state(bad)),)
-                         + tuple(GuardTerm(clock=c) for c in (_complement_clock(clock) if clock else [])))
-            sub = Part(f"violations {label}", "violation", "violation",
-                       [(ok, f"ok,{label}"), (bad_place, f"bad,{label}"), (count, f"count,{label}")],
-                       [(0, (1, 2), guard), (1, 0, back)], 0, text, counters=(2,))
+            back = Guard(
+                (GuardTerm(negate_state(bad)),)
+                + tuple(GuardTerm(clock=c) for c in (_complement_clock(clock) if clock else []))
+            )
+            sub = Part(
+                f"violations {label}",
+                "violation",
+                "violation",
+                [(ok, f"ok,{label}"), (bad_place, f"bad,{label}"), (count, f"count,{label}")],
+                [(0, (1, 2), guard), (1, 0, back)],
+                0,
+                text,
+                counters=(2,),
+            )
             self.penalties.append(count)
         else:
             viol = self._unique(f"p_violated_{label}")
-            sub = Part(f"violations {label}", "violation", "violation",
-                       [(ok, f"ok,{label}"), (viol, f"violated,{label}")], [(0, 1, guard)], 0, text)
+            sub = Part(
+                f"violations {label}",
+                "violation",
+                "violation",
+                [(ok, f"ok,{label}"), (viol, f"violated,{label}")],
+                [(0, 1, guard)],
+                0,
+                text,
+            )
             self.penalties.append(viol)
         self.cache[key] = [ok]
         self.violation_nets.append(sub)

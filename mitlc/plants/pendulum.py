@@ -13,7 +13,7 @@ True
 from __future__ import annotations
 
 import math
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -25,9 +25,7 @@ __all__ = ["PENDULUM"]
 def _pendulum(x: np.ndarray, u: np.ndarray, p: Mapping[str, float]) -> np.ndarray:
     # (A-2): J qdd = M g l sin(q) - (b + K^2/R) qd + (K/R) u, q from upright.
     q, qd = x[:, 0], x[:, 1]
-    qdd = (
-        p["M"] * p["g"] * p["l"] * np.sin(q) - (p["b"] + p["K"] ** 2 / p["R"]) * qd + p["K"] / p["R"] * u
-    ) / p["J"]
+    qdd = (p["M"] * p["g"] * p["l"] * np.sin(q) - (p["b"] + p["K"] ** 2 / p["R"]) * qd + p["K"] / p["R"] * u) / p["J"]
     return np.stack([qd, qdd], axis=1)
 
 
@@ -77,7 +75,7 @@ def _pendulum_rk4(plant: Plant, p: Mapping[str, float]) -> Callable[[np.ndarray,
         m[:, 4:] *= a  # the basis holds sin q_i
         m[:, 2] *= c  # ... and the saturated u
     final[0, 3] += math.pi  # q' + pi, ready for the wrap
-    stage_rows = [np.ascontiguousarray(stages[i, :5 + i][None, :]) for i in range(3)]
+    stage_rows = [np.ascontiguousarray(stages[i, : 5 + i][None, :]) for i in range(3)]
     v_lo, v_hi = plant.var("qdot").lo, plant.var("qdot").hi
     clip_v = "qdot" in plant.clip
     two_pi, pi = 2 * math.pi, math.pi
@@ -96,7 +94,7 @@ def _pendulum_rk4(plant: Plant, p: Mapping[str, float]) -> Callable[[np.ndarray,
         maximum(S[2], -u_max, out=S[2])
         sin(S[0], out=S[4])
         for i in range(3):
-            matmul(stage_rows[i], S[:5 + i], out=S[5 + i:6 + i])
+            matmul(stage_rows[i], S[: 5 + i], out=S[5 + i : 6 + i])
             sin(S[5 + i], out=S[5 + i])
         matmul(final, S, out=xt)
         q = xt[0]

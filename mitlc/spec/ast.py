@@ -15,8 +15,8 @@ Or(left=And(left=Atom(name='a'), right=Not(child=Atom(name='b'))), right=Atom(na
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 __all__ = [
     "Pos",
@@ -115,16 +115,16 @@ class Formula:
     prec: int = _PREC_ATOM
 
     @property
-    def children(self) -> tuple["Formula", ...]:
+    def children(self) -> tuple[Formula, ...]:
         return ()
 
-    def __and__(self, other: "Formula") -> "Formula":
+    def __and__(self, other: Formula) -> Formula:
         return And(self, other)
 
-    def __or__(self, other: "Formula") -> "Formula":
+    def __or__(self, other: Formula) -> Formula:
         return Or(self, other)
 
-    def __invert__(self) -> "Formula":
+    def __invert__(self) -> Formula:
         return Not(self)
 
     def __str__(self) -> str:  # pragma: no cover - every node overrides

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from mitlc.plants.base import PLANTS, Plant
 from mitlc.spec.ast import Formula, Pos
 from mitlc.spec.predicates import IntervalSet, Pred
-from mitlc.plants.base import PLANTS, Plant
 
 __all__ = ["PropDef", "InitRange", "Requirement", "Spec", "OPTIONS", "CRITERIA"]
 

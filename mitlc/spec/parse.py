@@ -17,7 +17,7 @@ mitlc.errors.SpecError: <spec>:1:3: error: inverted interval [2,1]: the lower en
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -25,10 +25,10 @@ from typing import Any
 import lark
 from lark import Lark, Token, Transformer
 
-from mitlc.spec import ast as A
-from mitlc.spec import predicates as P
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
 from mitlc.plants.base import PLANTS
+from mitlc.spec import ast as A
+from mitlc.spec import predicates as P
 from mitlc.spec.model import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
 
 __all__ = ["parse_spec", "load_spec", "parse_formula", "parse_predicate", "MAX_DEPTH", "RESERVED"]
@@ -37,8 +37,43 @@ MAX_DEPTH = 64
 """Deepest formula or predicate nesting accepted."""
 
 RESERVED = frozenset(
-    "F G U R W X true false True False inf infty not and or implies iff eventually always until "
-    "release weak_until prop formula check plant init horizon option in pi e setpoint require band".split()
+    [
+        "F",
+        "G",
+        "U",
+        "R",
+        "W",
+        "X",
+        "true",
+        "false",
+        "True",
+        "False",
+        "inf",
+        "infty",
+        "not",
+        "and",
+        "or",
+        "implies",
+        "iff",
+        "eventually",
+        "always",
+        "until",
+        "release",
+        "weak_until",
+        "prop",
+        "formula",
+        "check",
+        "plant",
+        "init",
+        "horizon",
+        "option",
+        "in",
+        "pi",
+        "e",
+        "setpoint",
+        "require",
+        "band",
+    ]
 )
 
 
@@ -49,7 +84,7 @@ def _grammar_text() -> str:
     return resources.files("mitlc.grammar").joinpath("mitl.lark").read_text(encoding="utf-8")
 
 
-@lru_cache(maxsize=None)
+@cache
 def _parser(start: str) -> Lark:
     return Lark(
         _grammar_text(),
@@ -128,9 +163,7 @@ class _Build(Transformer):
         tok, child = children
         w = _num(tok)
         if not (math.isfinite(w) and w > 0):
-            raise SpecError(
-                f"weight {tok} must be positive and finite", line=tok.line, column=tok.column
-            )
+            raise SpecError(f"weight {tok} must be positive and finite", line=tok.line, column=tok.column)
         return A.Weighted(w, child, pos=_pos(tok))
 
     def eventually(self, children: list[Any]) -> A.Formula:
@@ -206,9 +239,7 @@ class _Build(Transformer):
         name = str(tok)
         if name not in P.FUNCTIONS:
             known = ", ".join(sorted(P.FUNCTIONS))
-            raise SpecError(
-                f"unknown function '{name}' (known: {known})", line=tok.line, column=tok.column
-            )
+            raise SpecError(f"unknown function '{name}' (known: {known})", line=tok.line, column=tok.column)
         arity, _ = P.FUNCTIONS[name]
         if len(args) != arity:
             raise SpecError(
@@ -360,9 +391,7 @@ def _friendly(names: set[str]) -> str:
 def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntaxError:
     if isinstance(exc, lark.exceptions.UnexpectedCharacters):
         ch = text[exc.pos_in_stream] if exc.pos_in_stream < len(text) else "?"
-        return SpecSyntaxError(
-            f"unexpected character {ch!r}", line=exc.line, column=exc.column, source=text
-        )
+        return SpecSyntaxError(f"unexpected character {ch!r}", line=exc.line, column=exc.column, source=text)
     if isinstance(exc, lark.exceptions.UnexpectedToken):
         tok = exc.token
         if tok.type == "$END":
@@ -381,9 +410,7 @@ def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntax
             source=text,
         )
     lines = text.splitlines() or [""]
-    return SpecSyntaxError(
-        "unexpected end of input", line=len(lines), column=len(lines[-1]) + 1, source=text
-    )
+    return SpecSyntaxError("unexpected end of input", line=len(lines), column=len(lines[-1]) + 1, source=text)
 
 
 def _run(start: str, text: str, path: str | None) -> Any:
@@ -438,9 +465,7 @@ def _const(p: P.Pred, what: str, pos: Token) -> float:
     if names:
         v = names[0]
         where = v.pos or _pos(pos)
-        raise SpecError(
-            f"{what} must be a constant, but uses '{v.name}'", line=where.line, column=where.column
-        )
+        raise SpecError(f"{what} must be a constant, but uses '{v.name}'", line=where.line, column=where.column)
     value = P.const_value(p)
     assert value is not None
     if math.isnan(value):
@@ -473,9 +498,7 @@ def _parse_spec(text: str, path: str | None) -> Spec:
     def once(key: str, tok: Token) -> None:
         if key in seen:
             first = seen[key]
-            raise SpecError(
-                f"'{key}' given twice (first at line {first.line})", line=tok.line, column=tok.column
-            )
+            raise SpecError(f"'{key}' given twice (first at line {first.line})", line=tok.line, column=tok.column)
         seen[key] = tok
 
     # Plant first: the state variables it declares are needed to check predicates.
@@ -516,13 +539,11 @@ def _parse_spec(text: str, path: str | None) -> Spec:
             if state_names is not None and v.name not in state_names:
                 pos = v.pos or A.Pos(1, 1)
                 raise SpecError(
-                    f"unknown state variable '{v.name}' (plant '{plant_name}' has: "
-                    f"{', '.join(plant.state_names)})",  # type: ignore[union-attr]
+                    f"unknown state variable '{v.name}' (plant '{plant_name}' has: {', '.join(plant.state_names)})",  # type: ignore[union-attr]
                     line=pos.line,
                     column=pos.column,
                 )
 
-    first_formula_tok = None
     for st in statements:
         kind = st[0]
         if kind == "prop":
@@ -631,8 +652,9 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                     raise SpecError(f"only settling_time takes a band, not {name}", line=tok.line, column=tok.column)
                 band = _const(band_p, "band", tok)
                 if not 0 < band < 1:
-                    raise SpecError(f"band must be a fraction in (0, 1), got {A.fmt_number(band)}",
-                                    line=tok.line, column=tok.column)
+                    raise SpecError(
+                        f"band must be a fraction in (0, 1), got {A.fmt_number(band)}", line=tok.line, column=tok.column
+                    )
             requirements[name] = Requirement(name, lo, hi, band, pos=_pos(tok))
         elif kind == "option":
             _, tok, value = st
@@ -664,9 +686,7 @@ def _parse_spec(text: str, path: str | None) -> Spec:
             if isinstance(node, A.Atom) and node.name not in props:
                 pos = node.pos or A.Pos(1, 1)
                 hint = f"defined: {', '.join(props)}" if props else "define it with 'prop NAME = condition'"
-                raise SpecError(
-                    f"undefined proposition '{node.name}'", line=pos.line, column=pos.column, hint=hint
-                )
+                raise SpecError(f"undefined proposition '{node.name}'", line=pos.line, column=pos.column, hint=hint)
     used = set(A.atoms(formula)) if formula is not None else set()
     used |= set(A.atoms(check)) if check is not None else set()
     for name, p in props.items():

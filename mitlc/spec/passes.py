@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from functools import singledispatch
 
-from mitlc.spec import ast as A
 from mitlc.errors import CompileError
+from mitlc.spec import ast as A
 
 __all__ = ["desugar", "push_negations", "normal_form", "RULES", "is_state_formula"]
 
@@ -148,6 +148,4 @@ def is_state_formula(f: A.Formula) -> bool:
     >>> is_state_formula(parse_formula("a & !b")), is_state_formula(parse_formula("a & F b"))
     (True, False)
     """
-    return all(
-        isinstance(n, (A.Atom, A.Const, A.Not, A.And, A.Or, A.Weighted, A.Implies, A.Iff)) for n in A.walk(f)
-    )
+    return all(isinstance(n, (A.Atom, A.Const, A.Not, A.And, A.Or, A.Weighted, A.Implies, A.Iff)) for n in A.walk(f))

@@ -20,8 +20,8 @@ array([ True, False])
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -61,14 +61,14 @@ class Pred:
     __slots__ = ()
 
     @property
-    def children(self) -> tuple["Pred", ...]:
+    def children(self) -> tuple[Pred, ...]:
         return ()
 
 
 _P_OR, _P_AND, _P_NOT, _P_CMP, _P_ADD, _P_MUL, _P_NEG, _P_ATOM = range(1, 9)
 
 
-def _wrap(node: "Pred", min_prec: int) -> str:
+def _wrap(node: Pred, min_prec: int) -> str:
     text = str(node)
     return f"({text})" if node.prec < min_prec else text  # type: ignore[attr-defined]
 
@@ -182,7 +182,7 @@ class Compare(Pred):
 
     def __str__(self) -> str:
         out = [_wrap(self.operands[0], _P_ADD)]
-        for op, rhs in zip(self.ops, self.operands[1:]):
+        for op, rhs in zip(self.ops, self.operands[1:], strict=True):
             out += [op, _wrap(rhs, _P_ADD)]
         return " ".join(out)
 
@@ -261,7 +261,9 @@ def compile_numpy(p: Pred, var: Callable[[str], Callable[[object], np.ndarray]])
     return _compile(p, var, fold=True)
 
 
-def _compile(p: Pred, var: Callable[[str], Callable[[object], np.ndarray]], fold: bool) -> Callable[[object], np.ndarray]:
+def _compile(
+    p: Pred, var: Callable[[str], Callable[[object], np.ndarray]], fold: bool
+) -> Callable[[object], np.ndarray]:
     value = p.value if isinstance(p, Num) else const_value(p) if fold else None
     if value is not None:
         return lambda x, v=float(value): v
@@ -291,7 +293,7 @@ def _compile(p: Pred, var: Callable[[str], Callable[[object], np.ndarray]], fold
         def chain(x: object) -> np.ndarray:
             values = [f(x) for f in fs]
             out = cmps[0](values[0], values[1])
-            for c, a, b in zip(cmps[1:], values[1:], values[2:]):
+            for c, a, b in zip(cmps[1:], values[1:], values[2:], strict=False):
                 out = out & c(a, b)
             return out
 
@@ -343,19 +345,19 @@ class IntervalSet:
     pieces: tuple[tuple[float, float, bool, bool], ...]
 
     @staticmethod
-    def of(lo: float, hi: float, lo_closed: bool = True, hi_closed: bool = True) -> "IntervalSet":
+    def of(lo: float, hi: float, lo_closed: bool = True, hi_closed: bool = True) -> IntervalSet:
         return IntervalSet._norm([(lo, hi, lo_closed, hi_closed)])
 
     @staticmethod
-    def full() -> "IntervalSet":
+    def full() -> IntervalSet:
         return IntervalSet.of(-math.inf, math.inf, False, False)
 
     @staticmethod
-    def empty() -> "IntervalSet":
+    def empty() -> IntervalSet:
         return IntervalSet(())
 
     @staticmethod
-    def _norm(pieces: Sequence[tuple[float, float, bool, bool]]) -> "IntervalSet":
+    def _norm(pieces: Sequence[tuple[float, float, bool, bool]]) -> IntervalSet:
         keep = []
         for lo, hi, lc, hc in pieces:
             lc = lc and not math.isinf(lo)
@@ -379,10 +381,10 @@ class IntervalSet:
     def is_empty(self) -> bool:
         return not self.pieces
 
-    def union(self, other: "IntervalSet") -> "IntervalSet":
+    def union(self, other: IntervalSet) -> IntervalSet:
         return IntervalSet._norm(self.pieces + other.pieces)
 
-    def intersect(self, other: "IntervalSet") -> "IntervalSet":
+    def intersect(self, other: IntervalSet) -> IntervalSet:
         out = []
         for lo1, hi1, lc1, hc1 in self.pieces:
             for lo2, hi2, lc2, hc2 in other.pieces:
@@ -391,7 +393,7 @@ class IntervalSet:
                 out.append((lo, hi, lc, hc))
         return IntervalSet._norm(out)
 
-    def complement(self) -> "IntervalSet":
+    def complement(self) -> IntervalSet:
         out = []
         lo, lc = -math.inf, False
         for plo, phi, plc, phc in self.pieces:
@@ -583,7 +585,7 @@ def region(p: Pred, domains: Domains | None = None) -> Region | None:
     doms: Domains = domains or {}
     if isinstance(p, Compare):
         out: Region = ((),)
-        for lhs, op, rhs in zip(p.operands, p.ops, p.operands[1:]):
+        for lhs, op, rhs in zip(p.operands, p.ops, p.operands[1:], strict=False):
             r = _compare_region(lhs, op, rhs, doms)
             if r is None:
                 return None

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import os
 from collections import Counter, deque
-from typing import Any, Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
 from mitlc.errors import InputError
 from mitlc.sweep.task import run_task
-
 
 # ---------------------------------------------------------------- backends
 
@@ -42,8 +43,9 @@ class LocalBackend:
 
     name = "local"
 
-    def __init__(self, workers: int | None = None, max_retries: int = 3,
-                 on_retry: Callable[[dict, int], None] | None = None) -> None:
+    def __init__(
+        self, workers: int | None = None, max_retries: int = 3, on_retry: Callable[[dict, int], None] | None = None
+    ) -> None:
         self.workers = int(workers or default_workers())
         self.max_retries = int(max_retries)
         self.on_retry = on_retry
@@ -152,8 +154,9 @@ class RayBackend:
         try:
             import ray
         except ImportError:
-            raise InputError("the ray backend needs Ray", file="--backend",
-                             hint="pip install 'mitlc[ray]' (or use --backend local)") from None
+            raise InputError(
+                "the ray backend needs Ray", file="--backend", hint="pip install 'mitlc[ray]' (or use --backend local)"
+            ) from None
         return ray
 
     def run(self, payloads: Sequence[dict]) -> Iterator[Outcome]:
@@ -167,8 +170,13 @@ class RayBackend:
                     ray.init(address=self.address, logging_level=logging.WARNING, log_to_driver=False)
                 else:
                     # "local": a new Ray for this sweep, even if a `ray start` cluster runs on this machine
-                    ray.init(address="local", num_cpus=self.workers, include_dashboard=False,
-                             logging_level=logging.WARNING, log_to_driver=False)
+                    ray.init(
+                        address="local",
+                        num_cpus=self.workers,
+                        include_dashboard=False,
+                        logging_level=logging.WARNING,
+                        log_to_driver=False,
+                    )
             except (ConnectionError, RuntimeError, ValueError) as exc:
                 raise InputError(f"cannot start or reach Ray: {exc}", file="--address") from None
             connected_here = True

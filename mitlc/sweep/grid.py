@@ -28,13 +28,14 @@ import hashlib
 import itertools
 import json
 from collections import Counter
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
-from mitlc.spec import ast as A
-from mitlc.errors import InputError, MitlError
-from mitlc.spec.model import OPTIONS, Spec
-from mitlc.learn.settings import parse_finite, setting_parsers
+from typing import Any
 
+from mitlc.errors import InputError, MitlError
+from mitlc.learn.settings import parse_finite, setting_parsers
+from mitlc.spec import ast as A
+from mitlc.spec.model import OPTIONS, Spec
 
 # ---------------------------------------------------------------- weights
 
@@ -77,7 +78,7 @@ def weight_sites(f: A.Formula | None) -> tuple[WeightSite, ...]:
     counts = Counter(bases)
     seen: Counter[str] = Counter()
     sites = []
-    for i, (n, base) in enumerate(zip(nodes, bases)):
+    for i, (n, base) in enumerate(zip(nodes, bases, strict=True)):
         seen[base] += 1
         name = f"{base}.{seen[base]}" if counts[base] > 1 else base
         sites.append(WeightSite(name, i, n.weight, str(n)))
@@ -122,8 +123,9 @@ def with_weights(spec: Spec, weights: Mapping[str, float]) -> Spec:
     values = {}
     for name, value in weights.items():
         if name not in sites:
-            raise InputError(f"the formula has no weight '{name}' (it has: {', '.join(sites) or 'none'})",
-                             file=spec.path)
+            raise InputError(
+                f"the formula has no weight '{name}' (it has: {', '.join(sites) or 'none'})", file=spec.path
+            )
         values[sites[name].index] = float(value)
     return dataclasses.replace(spec, formula=set_weights(spec.formula, values))  # type: ignore[arg-type]
 
@@ -223,28 +225,32 @@ def parse_grid(items: Sequence[str], spec: Spec) -> tuple[Axis, ...]:
         if any(not t for t in texts):
             raise _axis_error(f"'{item}': empty value")
         if name.startswith("weight."):
-            wname = name[len("weight."):]
+            wname = name[len("weight.") :]
             site = by_name.get(wname)
             if site is None:
                 numbered = [s.axis for s in sites if s.name.rsplit(".", 1)[0] == wname]
                 if numbered:
-                    raise _axis_error(f"'{name}' is ambiguous: use one of {', '.join(numbered)}",
-                                      hint="mitlc sweep SPEC --list shows each weight's subformula")
-                raise _axis_error(f"the formula has no weight '{name}' (weights: {weight_names})",
-                                  hint="mitlc sweep SPEC --list shows each weight's subformula")
+                    raise _axis_error(
+                        f"'{name}' is ambiguous: use one of {', '.join(numbered)}",
+                        hint="mitlc sweep SPEC --list shows each weight's subformula",
+                    )
+                raise _axis_error(
+                    f"the formula has no weight '{name}' (weights: {weight_names})",
+                    hint="mitlc sweep SPEC --list shows each weight's subformula",
+                )
             kind, key, parse = "weight", wname, parse_finite
         elif name.startswith("option."):
-            key = name[len("option."):]
+            key = name[len("option.") :]
             if key not in OPTIONS:
-                raise _axis_error(f"unknown option '{name}' (options: "
-                                  f"{', '.join('option.' + o for o in OPTIONS)})")
+                raise _axis_error(f"unknown option '{name}' (options: {', '.join('option.' + o for o in OPTIONS)})")
             kind, parse = "option", str
         elif name in settings:
             kind, key, parse = "setting", name, settings[name]
         else:
             raise _axis_error(
                 f"unknown grid name '{name}' (trainer settings: {', '.join(settings)}; "
-                f"weights: {weight_names}; options: {', '.join('option.' + o for o in OPTIONS)})")
+                f"weights: {weight_names}; options: {', '.join('option.' + o for o in OPTIONS)})"
+            )
         values = []
         for t in texts:
             try:
@@ -312,16 +318,16 @@ def task_key(resolved: Mapping[str, Any], seed: int) -> str:
 
 def _validate_values(spec: Spec, axes: Sequence[Axis]) -> None:
     """Try each axis value on its own (the others at their defaults); raise InputError naming it."""
-    from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.learn.sacpn import Sacpn, SacpnSettings
+    from mitlc.petri.compile import CompileOptions, compile_spec
 
     base_opts = CompileOptions.from_spec(spec)
     try:
         base_rs = compile_spec(spec, base_opts)
     except MitlError as exc:
-        raise exc.located(spec.path, spec.source)
+        raise exc.located(spec.path, spec.source) from None
     for axis in axes:
-        for v, label in zip(axis.values, axis.labels):
+        for v, label in zip(axis.values, axis.labels, strict=True):
             try:
                 if axis.kind == "setting":
                     Sacpn(base_rs, dataclasses.replace(SacpnSettings(), **{axis.key: v}), runs=1, seed=0)
@@ -354,7 +360,7 @@ def plan_sweep(spec: Spec, grid: Sequence[str], seeds: Sequence[int], runs: int,
     configs = []
     for combo in itertools.product(*(range(len(a.values)) for a in axes)):
         overrides: dict[str, dict[str, Any]] = {"setting": {}, "weight": {}, "option": {}}
-        for axis, i in zip(axes, combo):
+        for axis, i in zip(axes, combo, strict=True):
             overrides[axis.kind][axis.key] = axis.values[i]
         settings = dataclasses.replace(SacpnSettings(), **overrides["setting"]).to_dict()
         resolved = {
@@ -362,15 +368,30 @@ def plan_sweep(spec: Spec, grid: Sequence[str], seeds: Sequence[int], runs: int,
             "weights": {**base_weights, **{k: float(v) for k, v in overrides["weight"].items()}},
             "options": {**base_options, **overrides["option"]},
         }
-        configs.append((tuple(a.labels[i] for a, i in zip(axes, combo)), resolved))
+        configs.append((tuple(a.labels[i] for a, i in zip(axes, combo, strict=True)), resolved))
     tasks = []
     for seed in seeds:
         for labels, resolved in configs:
             key = task_key(resolved, seed)
-            payload = {"key": key, "spec_text": text, "spec_path": spec.path, "runs": int(runs),
-                       "trials": int(trials), "seed": int(seed), **resolved}
+            payload = {
+                "key": key,
+                "spec_text": text,
+                "spec_path": spec.path,
+                "runs": int(runs),
+                "trials": int(trials),
+                "seed": int(seed),
+                **resolved,
+            }
             tasks.append(Task(key, int(seed), labels, payload))
     if len({t.key for t in tasks}) != len(tasks):
         raise _axis_error("two configurations of the grid are the same task")
-    return SweepPlan(text, spec.path, hashlib.sha256(text.encode("utf-8")).hexdigest(), int(runs), int(trials),
-                     tuple(int(s) for s in seeds), axes, tuple(tasks))
+    return SweepPlan(
+        text,
+        spec.path,
+        hashlib.sha256(text.encode("utf-8")).hexdigest(),
+        int(runs),
+        int(trials),
+        tuple(int(s) for s in seeds),
+        axes,
+        tuple(tasks),
+    )

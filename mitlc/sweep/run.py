@@ -1,16 +1,15 @@
-"""A whole sweep: the plan's tasks not yet in the store, run on a backend, each record stored as it arrives.
-"""
+"""A whole sweep: the plan's tasks not yet in the store, run on a backend, each record stored as it arrives."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+
 from mitlc.sweep.backends import LocalBackend, RayBackend
 from mitlc.sweep.grid import SweepPlan, Task
 from mitlc.sweep.store import ResultStore
-
 
 WRITE_BUDGET = 0.1
 """Largest fraction of a sweep's time spent rewriting the result files (see :func:`run_sweep`)."""
@@ -34,9 +33,13 @@ class SweepOutcome:
     wall_s: float
 
 
-def run_sweep(plan: SweepPlan, out_dir: str | Path, backend: LocalBackend | RayBackend | None = None,
-              on_result: Callable[[Task, dict], None] | None = None,
-              on_start: Callable[[int, int], None] | None = None) -> SweepOutcome:
+def run_sweep(
+    plan: SweepPlan,
+    out_dir: str | Path,
+    backend: LocalBackend | RayBackend | None = None,
+    on_result: Callable[[Task, dict], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+) -> SweepOutcome:
     """Run every task of ``plan`` not yet recorded in ``out_dir``, recording each result as it arrives.
 
     ``on_start(total, already_done)`` is called once before any task runs,

@@ -9,12 +9,13 @@ from __future__ import annotations
 import csv
 import io
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
+
 from mitlc.errors import InputError
 from mitlc.fileio import atomic_write
 from mitlc.sweep.grid import Axis
-
 
 RESULTS_JSON = "results.json"
 RESULTS_CSV = "results.csv"
@@ -57,7 +58,7 @@ class ResultStore:
         self._load()
 
     # the directory lock
-    def __enter__(self) -> "ResultStore":
+    def __enter__(self) -> ResultStore:
         self.dir.mkdir(parents=True, exist_ok=True)
         try:
             import fcntl
@@ -88,12 +89,18 @@ class ResultStore:
             raise InputError(f"cannot read earlier results: {exc}", file=str(path)) from None
         for k, v in self.header.items():
             if header.get(k) != v:
-                what = ("another spec text" if k == "spec_sha256" else
-                        f"{k} {header.get(k)}, not {v}" if k in ("runs", "trials") else
-                        f"spec {header.get(k)}, not {v}")
+                what = (
+                    "another spec text"
+                    if k == "spec_sha256"
+                    else f"{k} {header.get(k)}, not {v}"
+                    if k in ("runs", "trials")
+                    else f"spec {header.get(k)}, not {v}"
+                )
                 raise InputError(
                     f"{self.dir} holds a sweep with {what}",
-                    file="--out", hint="choose another --out directory, or use the same spec, --runs and --trials")
+                    file="--out",
+                    hint="choose another --out directory, or use the same spec, --runs and --trials",
+                )
         for r in records:
             self.records.setdefault(r["task"], r)
         known = {a.name for a in self.axes}
@@ -128,9 +135,11 @@ class ResultStore:
         """``results.json``: the header and axes, then one compact line per result."""
         axes = {a.name: {"kind": a.kind, "key": a.key} for a in self.axes}
         rows = ",\n".join("  " + json.dumps(r, separators=(",", ":")) for r in self.records.values())
-        return (f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n'
-                f' "results": [\n{rows}\n ]}}\n' if rows else
-                f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n "results": []}}\n')
+        return (
+            f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n "results": [\n{rows}\n ]}}\n'
+            if rows
+            else f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n "results": []}}\n'
+        )
 
     def write(self) -> None:
         """Rewrite ``results.json``, then ``results.csv``, each atomically."""

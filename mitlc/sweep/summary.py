@@ -1,12 +1,12 @@
-"""What a sweep found: a row per configuration (means over seeds), a table, a heat map.
-"""
+"""What a sweep found: a row per configuration (means over seeds), a table, a heat map."""
 
 from __future__ import annotations
 
 from collections import Counter
-from typing import Any, Mapping, Sequence
-from mitlc.sweep.grid import Axis, SweepPlan
+from collections.abc import Mapping, Sequence
+from typing import Any
 
+from mitlc.sweep.grid import Axis, SweepPlan
 
 # ---------------------------------------------------------------- summaries and the heat map
 
@@ -25,20 +25,22 @@ def summarize(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]]) -> list
     for labels, recs in groups.items():
         ok = [r for r in recs if r.get("error") is None]
 
-        def mean(m: str) -> float | None:
+        def mean(m: str, ok: list[Mapping[str, Any]] = ok) -> float | None:
             return float(np.mean([r[m] for r in ok])) if ok else None
 
-        rows.append({
-            **dict(zip((a.name for a in plan.axes), labels)),
-            "seeds": len(recs),
-            "errors": len(recs) - len(ok),
-            "success_rate": mean("success_rate"),
-            "success_min": min((r["success_rate"] for r in ok), default=None),
-            "success_max": max((r["success_rate"] for r in ok), default=None),
-            "final_return": mean("final_return"),
-            "failing": dict(sum((Counter(r.get("failing") or {}) for r in ok), Counter())),
-            "wall_s": float(np.mean([r["wall_s"] for r in recs])) if recs else None,
-        })
+        rows.append(
+            {
+                **dict(zip((a.name for a in plan.axes), labels, strict=True)),
+                "seeds": len(recs),
+                "errors": len(recs) - len(ok),
+                "success_rate": mean("success_rate"),
+                "success_min": min((r["success_rate"] for r in ok), default=None),
+                "success_max": max((r["success_rate"] for r in ok), default=None),
+                "final_return": mean("final_return"),
+                "failing": dict(sum((Counter(r.get("failing") or {}) for r in ok), Counter())),
+                "wall_s": float(np.mean([r["wall_s"] for r in recs])) if recs else None,
+            }
+        )
     return rows
 
 
@@ -48,23 +50,35 @@ def format_table(plan: SweepPlan, rows: Sequence[Mapping[str, Any]], markdown: b
     def num(v: float | None, fmt: str) -> str:
         return "-" if v is None else format(v, fmt)
 
-    head = [a.name for a in plan.axes] + ["seeds", "success (mean)", "min-max", "final return", "wall s",
-                                          "failing runs, by blame"]
+    head = [a.name for a in plan.axes] + [
+        "seeds",
+        "success (mean)",
+        "min-max",
+        "final return",
+        "wall s",
+        "failing runs, by blame",
+    ]
     body = []
     for r in rows:
         seeds = f"{r['seeds']}/{len(plan.seeds)}" + (f" ({r['errors']} diverged)" if r["errors"] else "")
-        body.append([str(r[a.name]) for a in plan.axes] + [
-            seeds, num(r["success_rate"], ".2f"),
-            "-" if r["success_min"] is None else f"{r['success_min']:.2f}-{r['success_max']:.2f}",
-            num(r["final_return"], ".1f"), num(r["wall_s"], ".1f"),
-            ", ".join(f"{k}: {n}" for k, n in sorted(r["failing"].items(), key=lambda kv: -kv[1])) or "-"])
+        body.append(
+            [str(r[a.name]) for a in plan.axes]
+            + [
+                seeds,
+                num(r["success_rate"], ".2f"),
+                "-" if r["success_min"] is None else f"{r['success_min']:.2f}-{r['success_max']:.2f}",
+                num(r["final_return"], ".1f"),
+                num(r["wall_s"], ".1f"),
+                ", ".join(f"{k}: {n}" for k, n in sorted(r["failing"].items(), key=lambda kv: -kv[1])) or "-",
+            ]
+        )
     if markdown:
         lines = ["| " + " | ".join(head) + " |", "|" + "|".join(" --- " for _ in head) + "|"]
         lines += ["| " + " | ".join(row) + " |" for row in body]
         return "\n".join(lines)
     widths = [max(len(h), *(len(row[i]) for row in body)) if body else len(h) for i, h in enumerate(head)]
-    lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths)).rstrip()]
-    lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in body]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True)).rstrip()]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in body]
     return "\n".join(lines)
 
 
@@ -132,8 +146,15 @@ def heatmap_figure(plan: SweepPlan, records: Mapping[str, Mapping[str, Any]], ti
         for xi in range(len(x_axis.labels)):
             if counts[yi, xi]:
                 v = grid[yi, xi]
-                ax.text(xi, yi, f"{v:.2f}\n({counts[yi, xi]})", ha="center", va="center", fontsize=8,
-                        color="black" if v > 0.6 else "white")
+                ax.text(
+                    xi,
+                    yi,
+                    f"{v:.2f}\n({counts[yi, xi]})",
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color="black" if v > 0.6 else "white",
+                )
     others = [a.name for a in plan.axes if a.swept and a not in (x_axis, y_axis)]
     over = "seeds" + (" and " + ", ".join(others) if others else "")
     ax.set_title(title or f"success rate, mean over {over} (n per cell)", fontsize=9)

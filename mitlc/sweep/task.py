@@ -1,15 +1,15 @@
-"""One task of a sweep: parse, reweight, compile, train, judge; a pure function of its payload.
-"""
+"""One task of a sweep: parse, reweight, compile, train, judge; a pure function of its payload."""
 
 from __future__ import annotations
 
 import socket
 import time
 from collections import Counter
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
+
 from mitlc.errors import TrainingError
 from mitlc.sweep.grid import with_weights
-
 
 FINAL_TRIALS = 10
 """The final mean return is the mean over runs of the last this many trials (as ``mitlc train`` prints)."""
@@ -32,16 +32,17 @@ def run_task(payload: Mapping[str, Any]) -> dict:
     """
     import numpy as np
 
-    from mitlc.petri.compile import CompileOptions, compile_spec
-    from mitlc.monitor.offline import monitor
-    from mitlc.spec.parse import parse_spec
     from mitlc.learn.sacpn import Sacpn, SacpnSettings
+    from mitlc.monitor.offline import monitor
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.spec.parse import parse_spec
 
     start, cpu_start = time.perf_counter(), time.process_time()
     spec = with_weights(parse_spec(payload["spec_text"], payload.get("spec_path")), payload["weights"])
     rs = compile_spec(spec, CompileOptions(**payload["options"]))
-    agent = Sacpn(rs, SacpnSettings.from_dict(payload["settings"]), runs=int(payload["runs"]),
-                  seed=int(payload["seed"]))
+    agent = Sacpn(
+        rs, SacpnSettings.from_dict(payload["settings"]), runs=int(payload["runs"]), seed=int(payload["seed"])
+    )
     record: dict[str, Any] = {
         "task": payload["key"],
         "seed": int(payload["seed"]),
