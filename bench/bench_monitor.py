@@ -3,7 +3,7 @@
 Run:  python bench/bench_monitor.py [--seed 0] [--repeat 5] [--max-exp 6]
 
 For formulas with interval operators at dt = 0.01 (windows of 100 and 200
-samples) it prints the median time of :func:`mitlc.monitor.offline.monitor` (verdict,
+samples) it prints the median time of :func:`mitlc.monitor.monitor` (verdict,
 robustness, violation time and failing subformula) on one trace of growing
 length, the time per sample, and its ratio against the smallest size measured
 in the same process. A flat ``per-sample ratio`` means linear cost. It then

@@ -204,7 +204,7 @@ def write_doc(rows, comparisons, total: float) -> None:
         "[training.md](training.md)). **Success** is the fraction of runs whose final greedy rollout (no "
         "exploration, from an initial state drawn from the spec's `init` set with the run's own evaluation "
         "generator) satisfies the spec's monitor formula (`check` if the spec has one, else `formula`) by "
-        "`mitlc.monitor.offline`. **Final return** is the mean over runs of the last 10 trials' returns (with "
+        "`mitlc.monitor`. **Final return** is the mean over runs of the last 10 trials' returns (with "
         "exploration). Wall time is the training time of the 30 runs together, batched, on one core.",
         "",
         "| problem | trials | target | success seed 0 | success seed 1 | final return (s0 / s1) | wall s (s0 / s1) | "

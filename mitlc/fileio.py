@@ -17,6 +17,7 @@ import os
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -59,5 +60,6 @@ def atomic_write(path: str | Path, data: bytes | str) -> None:
 def save_npz(path: str | Path, arrays: Mapping[str, np.ndarray]) -> None:
     """:func:`numpy.savez` to ``path``, atomically."""
     buf = io.BytesIO()
-    np.savez(buf, **arrays)
+    named: dict[str, Any] = dict(arrays)  # numpy's stub reads **kwargs as if they could be allow_pickle
+    np.savez(buf, **named)
     atomic_write(path, buf.getvalue())

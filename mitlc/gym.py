@@ -1,4 +1,10 @@
-"""Use a compiled reward system with any Gymnasium environment.
+"""Use a compiled reward system with any Gymnasium environment: the edge to other learners.
+
+In: a :class:`~mitlc.petri.RewardSystem` (or a :class:`~mitlc.spec.Spec`, or the path of a
+``.mitl`` file) and a Gymnasium environment. Out: :class:`MitlRewardWrapper`, the environment
+paying the compiled reward. May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`,
+:mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.monitor`,
+:mod:`mitlc.learn`.
 
 :class:`MitlRewardWrapper` steps the reward net (one :class:`~mitlc.learn.runtime.NetRuntime`
 run) alongside a Gymnasium environment:
@@ -15,7 +21,7 @@ observation        ``{"obs": obs, "marking": M_k}`` (``Dict`` of the env's space
                    entry per counter instead of ``MultiBinary``
 ``info``           ``marking`` (``M_k``, int8, in ``net.place_names`` order), ``tau``
                    (``k * dt``), ``env_reward``, and ``verdict``: the monitor's verdict
-                   on ``x_0 .. x_k`` (when :mod:`mitlc.monitor.offline` is available)
+                   on ``x_0 .. x_k`` (when :mod:`mitlc.monitor` is available)
 ``reset``          the net goes back to its initial marking: timing tokens at ``M0``,
                    state tokens on the region of ``x_0``
 =================  =====================================================================
@@ -106,7 +112,7 @@ def _reward_system(spec: RewardSystem | Spec | str | os.PathLike) -> RewardSyste
     if isinstance(spec, Spec):
         return compile_spec(spec)
     if isinstance(spec, (str, os.PathLike)):
-        return compile_spec(load_spec(spec))
+        return compile_spec(load_spec(os.fspath(spec)))
     raise InputError(f"expected a RewardSystem, a Spec or the path of a .mitl file, got {type(spec).__name__}")
 
 
@@ -126,6 +132,16 @@ def _positive_dt(value: Any, where: str) -> float:
     if not (math.isfinite(dt) and dt > 0):
         raise InputError(f"{where} must be positive and finite, got {dt}")
     return dt
+
+
+def _call_getter(f: Callable[[Any], float]) -> Callable[[Any, np.ndarray], float]:
+    """A state variable read by a user function of the observation."""
+    return lambda obs, flat: float(np.asarray(f(obs), dtype=float))
+
+
+def _index_getter(i: int) -> Callable[[Any, np.ndarray], float]:
+    """A state variable read at index ``i`` of the flattened observation."""
+    return lambda obs, flat: float(flat[i])
 
 
 class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -235,7 +251,7 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._monitor = None
         if verdict != "off":
             try:
-                self._monitor = importlib.import_module("mitlc.monitor.offline").monitor
+                self._monitor = importlib.import_module("mitlc.monitor").monitor
             except ImportError:  # the monitor is optional here: no verdict without it
                 self._monitor = None
         self._verdict_mode = verdict
@@ -292,20 +308,20 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             getters: list[tuple[int, Callable[[Any, np.ndarray], float]]] = []
             for key, how in observe.items():
                 if callable(how):
-                    getters.append((column[key], lambda obs, flat, f=how: float(np.asarray(f(obs), dtype=float))))
+                    getters.append((column[key], _call_getter(how)))
                 elif isinstance(how, (int, np.integer)) and not isinstance(how, bool):
                     i = int(how)
                     if size is not None and not -size <= i < size:
                         raise InputError(
                             f"observe maps '{key}' to index {i}, outside the flattened observation of size {size}"
                         )
-                    getters.append((column[key], lambda obs, flat, i=i: float(flat[i])))
+                    getters.append((column[key], _index_getter(i)))
                 else:
                     raise InputError(f"observe maps '{key}' to {how!r}: expected an index or a function obs -> value")
             needs_flat = any(isinstance(h, (int, np.integer)) for h in observe.values())
 
             def read(obs: Any) -> np.ndarray:
-                flat = np.asarray(spaces.flatten(base, obs), dtype=float).reshape(-1) if needs_flat else None
+                flat = np.asarray(spaces.flatten(base, obs), dtype=float).reshape(-1) if needs_flat else np.empty(0)
                 x = np.full(len(names), np.nan)
                 for col, get in getters:
                     x[col] = get(obs, flat)

@@ -92,7 +92,7 @@ def test_wrap_pendulum_v1(tmp_path: Path) -> None:
     rewards = [float(line.split(" r ")[1].split()[0]) for line in steps[1:]]
     assert rewards[:6] == [2.0, 2.0, 2.0, -2.0, -1.0, -1.0]
     assert lines[-2].startswith(f"return {sum(rewards):+.2f} (Pendulum-v1's own reward would give ")
-    if importlib.util.find_spec("mitlc.monitor.offline") is not None:
+    if importlib.util.find_spec("mitlc.monitor") is not None:
         assert lines[-1].startswith("monitor: violated at 3.0 s by F G kappa, robustness ")
 
 

@@ -26,7 +26,7 @@ SPECS = ROOT / "specs" / "pendulum"
 P1 = SPECS / "p1_swing_up.mitl"
 P5 = SPECS / "p5_timed_visit.mitl"
 PENDULUM_DT = 0.05  # Gymnasium's Pendulum-v1: env.unwrapped.dt
-HAS_MONITOR = importlib.util.find_spec("mitlc.monitor.offline") is not None
+HAS_MONITOR = importlib.util.find_spec("mitlc.monitor") is not None
 
 # Warnings check_env gives for Pendulum-v1 itself, whatever wraps it.
 KNOWN_WARNINGS = ("is different from the unwrapped version", "symmetric and normalized space")
@@ -208,7 +208,7 @@ def test_truncate_at_horizon() -> None:
 # ------------------------------------------------------------------ info: marking and verdict
 
 
-@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor.offline is not there yet")
+@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor is not there yet")
 def test_info_has_the_monitors_verdict_so_far() -> None:
     from mitlc.monitor.offline import monitor
 
@@ -236,7 +236,7 @@ def test_verdict_modes() -> None:
 
 
 def test_without_the_monitor_there_is_no_verdict(monkeypatch) -> None:
-    monkeypatch.setitem(sys.modules, "mitlc.monitor.offline", None)  # import mitlc.monitor.offline raises ImportError
+    monkeypatch.setitem(sys.modules, "mitlc.monitor", None)  # import mitlc.monitor raises ImportError
     env = wrapped(P1)
     _, info = env.reset(seed=1)
     assert "verdict" not in info and info["marking"].tolist() == [1, 0]

@@ -210,3 +210,18 @@ def test_rbf_features_are_normalised_gaussians_and_periodic_in_the_angle():
 def test_settings_round_trip():
     s = SacpnSettings(sigma=2.0, mask="next", rbf=(8, 6))
     assert SacpnSettings.from_dict(s.to_dict()) == s
+
+
+def test_a_net_too_large_to_tabulate_is_a_clear_error():
+    """Twelve nested (so never disjoint) propositions make 2^12 region markings, more pairs than the
+    runtime tabulates: SACPN says so instead of failing inside the first trial."""
+    from mitlc.errors import TrainingError
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import parse_spec
+
+    props = "\n".join(f"prop a{i} = q > {i / 10}" for i in range(12))
+    conj = " & ".join(f"F a{i}" for i in range(12))
+    rs = compile_spec(parse_spec(f"plant pendulum\ninit q in [0, 1], qdot = 0\nhorizon 1\n{props}\nformula {conj}"))
+    assert rs.net.subnets and len(rs.net.subnets) >= 12
+    with pytest.raises(TrainingError, match="too many markings"):
+        Sacpn(rs, SacpnSettings(), runs=1)

@@ -47,6 +47,8 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
 
     s = load_spec(spec)
     formula = s.monitor_formula
+    if formula is None:
+        raise InputError("the spec has no formula or check line to judge a trace by", file=spec)
     if formula_text is not None:
         try:
             formula = parse_formula(formula_text)

@@ -4,7 +4,7 @@
 of the thesis) with 30 runs and writes, to ``--out`` (default ``runs/<spec>``):
 
 * ``metrics.json``: ``returns`` (runs x trials), ``success_rate`` (fraction of
-  runs whose final greedy rollout satisfies the spec, by :mod:`mitlc.monitor.offline`),
+  runs whose final greedy rollout satisfies the spec, by :mod:`mitlc.monitor`),
   ``satisfied`` and ``robustness`` per run, ``wall_s``, the settings;
 * ``params.npz``: the learner's full state (parameters, random generator
   states, trial counter), also the checkpoint ``--resume`` continues from;

@@ -219,9 +219,12 @@ def _settling_time(r: Requirement, b: _Builder) -> _Criterion:
     def in_band(d: int, band: float = band) -> Guard:
         return all_of(b.past(band, d, strict=False), b.before(-band, d))
 
+    def entry(d: int, band: float = band) -> Guard:
+        return any_of(b.past(band, d, strict=False), Cmp("tau", ">=", t_s))
+
     return _Criterion(
         r,
-        entry=lambda d, band=band: any_of(b.past(band, d, strict=False), Cmp("tau", ">=", t_s)),
+        entry=entry,
         invariant=lambda d, first: Cmp("tau", "<", t_s),
         success=lambda d: all_of(Cmp("tau", ">=", t_s), in_band(d)),
         failure=lambda d: all_of(Cmp("tau", ">=", t_s), negate(in_band(d))),
@@ -362,20 +365,26 @@ def _compile(spec: Spec, constants: RewardConstants | None, permanent_penalty: b
         name = e_names[i]
         nxt = e_names[i + 1] if i + 1 < len(crits) else "S"
         earlier = crits[:i]
+
+        def invariant(d: int, cr: _Criterion = cr, i: int = i) -> Guard:
+            return cr.invariant(d, i == 0)
+
         modes.append(
             Mode(
                 name,
                 "E",
-                invariant=b.cases_of(lambda d, cr=cr, i=i: cr.invariant(d, i == 0)),
+                invariant=b.cases_of(invariant),
                 reward=Reward((AbsError(c.error_weight, cr.target),)),
                 clock=cr.clock,
                 criterion=cr.req.name,
                 doc=cr.doc,
             )
         )
-        violation = b.cases_of(
-            lambda d, cr=cr, earlier=earlier: any_of(cr.failure(d), *(negate(e.hold(d)) for e in earlier))
-        )
+
+        def violated(d: int, cr: _Criterion = cr, earlier: list[_Criterion] = earlier) -> Guard:
+            return any_of(cr.failure(d), *(negate(e.hold(d)) for e in earlier))
+
+        violation = b.cases_of(violated)
         if violation != FALSE:
             edges.append(Edge(name, "P", violation, "violation"))
         edges.append(Edge(name, nxt, b.cases_of(cr.success), "success"))

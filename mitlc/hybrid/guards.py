@@ -140,12 +140,12 @@ def parenthesized(g: Guard) -> str:
     return f"({g})" if isinstance(g, (AllOf, AnyOf)) and len(g.args) > 1 else str(g)
 
 
-def _join(cls: type, absorbing: Guard, gs: tuple[Guard, ...]) -> Guard:
+def _join(cls: type[AllOf] | type[AnyOf], absorbing: Guard, gs: tuple[Guard, ...]) -> Guard:
     """``cls`` (AllOf or AnyOf) of ``gs``, flattened and deduplicated; ``absorbing`` decides it at once."""
     out: list[Guard] = []
     for g in gs:
         if isinstance(g, cls):
-            out.extend(a for a in g.args if a not in out)  # type: ignore[attr-defined]
+            out.extend(a for a in g.args if a not in out)
         elif g == absorbing:
             return absorbing
         elif g not in out:

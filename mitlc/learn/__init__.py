@@ -14,7 +14,20 @@ May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
 learners are judged by it, from a later stage).
 """
 
+from mitlc.learn.features import Axis, RbfFeatures
+from mitlc.learn.hyrl import HybridLearner, HybridRollout, HyrlSettings, load_learner
 from mitlc.learn.runtime import NetRuntime
 from mitlc.learn.sacpn import Rollout, Sacpn, SacpnSettings
 
-__all__ = ["NetRuntime", "Rollout", "Sacpn", "SacpnSettings"]
+__all__ = [
+    "Axis",
+    "HybridLearner",
+    "HybridRollout",
+    "HyrlSettings",
+    "NetRuntime",
+    "RbfFeatures",
+    "Rollout",
+    "Sacpn",
+    "SacpnSettings",
+    "load_learner",
+]

@@ -44,6 +44,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -596,7 +597,8 @@ class HybridLearner:
         import io
 
         buf = io.BytesIO()
-        np.savez(buf, **self.state_dict())
+        arrays: dict[str, Any] = self.state_dict()  # numpy's stub reads **kwargs as if they could be allow_pickle
+        np.savez(buf, **arrays)
         return buf.getvalue()
 
     def save(self, path: str | Path) -> None:
@@ -686,7 +688,7 @@ class Evaluation:
     def run_success(self, where: np.ndarray | None = None, stable: bool = True) -> np.ndarray:
         """Runs whose greedy policy succeeds from every initial state (of those selected by
         ``where``), ``(R,)``."""
-        return self.ok(stable)[:, self._sel(where)].all(axis=1)
+        return np.asarray(self.ok(stable)[:, self._sel(where)].all(axis=1))
 
     def success_rate(self, where: np.ndarray | None = None, stable: bool = True) -> float:
         """Fraction of runs succeeding from all (selected) initial states."""

@@ -56,6 +56,7 @@ two table look-ups.  The tables are built *from* the direct rule, and
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -78,7 +79,12 @@ def _clock_ok(interval: A.Interval, tau: np.ndarray | float) -> np.ndarray | boo
 
 def compile_predicate(p: P.Pred, columns: Mapping[str, int]) -> Callable[[np.ndarray], np.ndarray | float]:
     """A predicate as one closure over a state batch ``x`` ``(R, n)`` (columns by variable name)."""
-    return P.compile_numpy(p, lambda name: lambda x, i=columns[name]: x[:, i])
+
+    def column(name: str) -> Callable[[Any], np.ndarray]:
+        i = columns[name]
+        return lambda x: x[:, i]
+
+    return P.compile_numpy(p, column)
 
 
 class NetRuntime:
@@ -145,8 +151,8 @@ class NetRuntime:
         for sub in net.subnets:
             if sub.kind != "state":
                 continue
-            for t in sub.transitions:
-                tr = net.transitions[t]
+            for t_index in sub.transitions:
+                tr = net.transitions[t_index]
                 p = net.place_index(tr.outputs[0])
                 terms = [term.state for term in tr.guard.terms if term.state is not None and term.clock is None]
                 if p not in self._region_of and terms:
@@ -191,7 +197,7 @@ class NetRuntime:
         tau = np.asarray(tau, dtype=float)
         code = np.zeros(tau.shape, dtype=np.int64)
         for i, c in enumerate(self.clocks):
-            code += _clock_ok(c, tau).astype(np.int64) << i
+            code += np.asarray(_clock_ok(c, tau), dtype=np.int64) << i
         return code
 
     # ------------------------------------------------------------ markings and codes

@@ -226,6 +226,11 @@ class Sacpn:
         self.n_steps = max(1, int(round(self.trial_s / self.dt)))
         self.runtime = NetRuntime(rs, plant.state_names)
         if self.runtime.tables is None:
+            raise TrainingError(
+                f"the net has too many markings for SACPN's transition tables ({len(rs.net.places)} places in "
+                f"{len(rs.net.subnets)} sub-nets); split the formula or merge propositions"
+            )
+        if self.runtime.tables is None:
             raise TrainingError("the reward net is too large to tabulate for training")
         self.n_places = self.runtime.n_places
         # The actor weighs the rows of the state and timing places only: a violation
@@ -375,6 +380,7 @@ class Sacpn:
         N = self.n_steps
         rt = self.runtime
         tables = rt.tables
+        assert tables is not None  # checked in __init__
         next_code, reward_full, marked, marked_c = tables.next_code, tables.reward, self._marked, self._marked_c
         # the penalty ramp: this trial pays s c instead of c (returns are counted with c)
         s_pen = self.penalty_scale(self.trial)

@@ -156,7 +156,7 @@ def until_unbounded(phi: np.ndarray, psi: np.ndarray, lat: Lattice) -> np.ndarra
     """
     R, L = phi.shape
     if L <= _SMALL:
-        out = np.empty((R, L), dtype=lat.dtype)
+        out: np.ndarray = np.empty((R, L), dtype=lat.dtype)
         cur = lat.full((R,), lat.bottom)
         for k in range(L - 1, -1, -1):
             cur = lat.join(psi[:, k], lat.meet(phi[:, k], cur))

@@ -576,7 +576,7 @@ def _environment(spec: Spec, states: Any, needed: tuple[str, ...]) -> tuple[dict
 def _shape_of_mapping(states: Mapping[str, Any]) -> tuple[int, int]:
     for n, a in states.items():
         try:
-            return _as_batch(a, f"state variable '{n}'").shape  # type: ignore[return-value]
+            return _as_batch(a, f"state variable '{n}'").shape
         except (TypeError, ValueError):
             continue
     raise InputError("no state values given: cannot tell the trace length")
@@ -590,6 +590,8 @@ def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> t
         raise InputError(f"sample time must be a number, got {dt!r}") from None
     if not (math.isfinite(dt) and dt > 0):
         raise InputError(f"sample time must be positive and finite, got {dt}")
+    if f is None:
+        raise SpecError("the spec has no 'formula' nor 'check' line to judge a trace by; pass a formula")
     needed = needed_variables(spec, f)
     env, R, L = _environment(spec, states, needed)
     return _Eval(spec, env, dt, R, L), f

@@ -37,7 +37,7 @@ import numpy as np
 from mitlc.errors import CompileError
 from mitlc.petri import reward as R
 from mitlc.petri.net import Guard, GuardTerm, Net, Place, SubNet, Transition
-from mitlc.petri.parts import Part, tokens
+from mitlc.petri.parts import Arc, Part, tokens
 from mitlc.petri.reading import (
     conjoin,
     flatten,
@@ -385,7 +385,9 @@ class _Builder(ViolationWatches):
                 labels = [self._label(phi, "GF") for _, (_, phi) in cyc]
                 names = [self._unique(f"p_tau_{lab}") for lab in labels]
                 n = len(names)
-                arcs = [(j, (j + 1) % n, Guard.state(strip_weights(phi))) for j, (_, (_, phi)) in enumerate(cyc)]
+                arcs: list[Arc] = [
+                    (j, (j + 1) % n, Guard.state(strip_weights(phi))) for j, (_, (_, phi)) in enumerate(cyc)
+                ]
                 self.timing.append(
                     Part(
                         "recurrence",
@@ -438,11 +440,11 @@ class _Builder(ViolationWatches):
         d_minus = np.zeros((len(transitions), len(places)), dtype=np.int64)
         d_plus = np.zeros_like(d_minus)
         trans = []
-        for t, (name, guard, src, outs, s_idx) in enumerate(transitions):
-            d_minus[t, index[src]] = 1
-            for dst in outs:
-                d_plus[t, index[dst]] = 1
-            trans.append(Transition(name, guard, (src,), outs, s_idx))
+        for t, (name, guard, src_name, outs, s_idx) in enumerate(transitions):
+            d_minus[t, index[src_name]] = 1
+            for dst_name in outs:
+                d_plus[t, index[dst_name]] = 1
+            trans.append(Transition(name, guard, (src_name,), outs, s_idx))
         net = Net(tuple(places), tuple(trans), tuple(subnets), d_minus, d_plus, np.array(m0, dtype=np.int64))
         return net, _resolve(reward, index)
 
@@ -457,7 +459,8 @@ def _resolve(e: R.RExpr, index: dict[str, int]) -> R.RExpr:
     if isinstance(e, R.Neg):
         return R.Neg(_resolve(e.arg, index))
     field_name = {R.Sum: "terms", R.Prod: "factors", R.Min: "terms", R.Max: "terms"}[type(e)]
-    return dataclasses.replace(e, **{field_name: tuple(_resolve(c, index) for c in e.children)})
+    children = tuple(_resolve(c, index) for c in e.children)
+    return dataclasses.replace(e, **{field_name: children})  # type: ignore[type-var]  # e is Sum/Prod/Min/Max here
 
 
 def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSystem:
@@ -484,6 +487,7 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
     reward = builder.reward(formula, everything, under_g=False, conj=True)
     penalty = 0.0
     net, resolved = builder.assemble(reward)
+    charge: R.RExpr | None
     if builder.penalties:
         # c: more than any step can earn above a violation-free step
         lo_free, _ = bounds_without_violation(builder, net, resolved)

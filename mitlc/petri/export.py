@@ -200,8 +200,8 @@ def to_networkx(rs: RewardSystem) -> nx.DiGraph:
         g.add_node(p.name, bipartite=0, kind=p.kind, tokens=int(net.M0[i]), subnet=p.subnet, label=p.label)
     for t in net.transitions:
         g.add_node(t.name, bipartite=1, guard=str(t.guard), subnet=t.subnet)
-        for p in t.inputs:
-            g.add_edge(p, t.name, weight=1)
-        for p in t.outputs:
-            g.add_edge(t.name, p, weight=1)
+        for name in t.inputs:
+            g.add_edge(name, t.name, weight=1)
+        for name in t.outputs:
+            g.add_edge(t.name, name, weight=1)
     return g

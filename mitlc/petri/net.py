@@ -223,7 +223,7 @@ class Net:
 
     def successors(self, place: int) -> tuple[int, ...]:
         """Places a token in ``place`` can move to in one transition."""
-        out = []
+        out: list[int] = []
         for t in range(len(self.transitions)):
             if self.D_minus[t, place]:
                 out.extend(int(j) for j in np.flatnonzero(self.D_plus[t]))

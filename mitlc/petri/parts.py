@@ -15,6 +15,9 @@ from mitlc.petri.net import Guard
 
 __all__ = ["Part", "tokens"]
 
+Arc = tuple[int, int | tuple[int, ...], Guard]
+"""An arc of a :class:`Part`: local source, local destination(s), guard."""
+
 
 @dataclass
 class Part:
@@ -24,7 +27,7 @@ class Part:
     kind: str
     role: str
     places: list[tuple[str, str]]  # (name, label)
-    arcs: list[tuple[int, int | tuple[int, ...], Guard]]  # local src, local dst(s), guard
+    arcs: list[Arc]  # local src, local dst(s), guard; a list: the violation builder adds arcs later
     initial: int
     formula: str = ""
     counters: tuple[int, ...] = ()  # local indices of counting places (outside the one-token set)

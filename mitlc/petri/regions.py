@@ -7,7 +7,7 @@ import math
 from collections.abc import Callable, Sequence
 
 from mitlc.petri.net import Guard
-from mitlc.petri.parts import Part
+from mitlc.petri.parts import Arc, Part
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
@@ -59,7 +59,9 @@ def region_net(spec: Spec, group: tuple[str, ...], unique: Callable[[str], str])
             for a in group[1:]:
                 none = A.And(none, A.Not(A.Atom(a)))
             regions.append(none)
-    arcs = [(i, j, Guard.state(regions[j])) for i in range(len(places)) for j in range(len(places)) if i != j]
+    arcs: list[Arc] = [
+        (i, j, Guard.state(regions[j])) for i in range(len(places)) for j in range(len(places)) if i != j
+    ]
     initial = initial_region(spec, group)
     return Part(f"region({', '.join(group)})", "state", "region", places, arcs, initial)
 

@@ -89,10 +89,10 @@ def to_digraph(rs: RewardSystem, title: str | None = None) -> graphviz.Digraph:
                 )
     index = {p.name: i for i, p in enumerate(net.places)}
     for t_idx, t in enumerate(net.transitions):
-        for p in t.inputs:
-            g.edge(f"P{index[p]}", f"T{t_idx}")
-        for p in t.outputs:
-            g.edge(f"T{t_idx}", f"P{index[p]}")
+        for name in t.inputs:
+            g.edge(f"P{index[name]}", f"T{t_idx}")
+        for name in t.outputs:
+            g.edge(f"T{t_idx}", f"P{index[name]}")
     return g
 
 

@@ -9,7 +9,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from mitlc.petri.net import Guard
-from mitlc.petri.parts import Part
+from mitlc.petri.parts import Arc, Part
 from mitlc.spec import ast as A
 
 __all__ = ["Threshold", "lower", "upper", "formula_thresholds", "segment_name", "timeline_net"]
@@ -70,5 +70,5 @@ def timeline_net(th: Sequence[Threshold], unique: Callable[[str], str]) -> Part:
         hi = th[i] if i < len(th) else None
         name = unique(segment_name(lo, hi))
         places.append((name, name[2:]))
-    arcs = [(i, i + 1, Guard.clock(t.clock())) for i, t in enumerate(th)]
+    arcs: list[Arc] = [(i, i + 1, Guard.clock(t.clock())) for i, t in enumerate(th)]
     return Part("timeline", "timing", "timeline", places, arcs, 0, "trial clock")

@@ -390,7 +390,8 @@ def _friendly(names: set[str]) -> str:
 
 def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntaxError:
     if isinstance(exc, lark.exceptions.UnexpectedCharacters):
-        ch = text[exc.pos_in_stream] if exc.pos_in_stream < len(text) else "?"
+        pos: int = exc.pos_in_stream  # type: ignore[assignment]  # lark types it None; the lexer always sets an int
+        ch = text[pos] if pos < len(text) else "?"
         return SpecSyntaxError(f"unexpected character {ch!r}", line=exc.line, column=exc.column, source=text)
     if isinstance(exc, lark.exceptions.UnexpectedToken):
         tok = exc.token

@@ -119,14 +119,14 @@ def push_negations(f: A.Formula, negate: bool = False) -> A.Formula:
     if isinstance(f, A.Weighted):
         return A.Weighted(f.weight, push_negations(f.child, negate), pos=f.pos)
     if isinstance(f, (A.And, A.Or)):
-        cls = f.__class__ if not negate else (A.Or if isinstance(f, A.And) else A.And)
-        return cls(push_negations(f.left, negate), push_negations(f.right, negate), pos=f.pos)
+        binary = f.__class__ if not negate else (A.Or if isinstance(f, A.And) else A.And)
+        return binary(push_negations(f.left, negate), push_negations(f.right, negate), pos=f.pos)
     if isinstance(f, (A.Eventually, A.Globally)):
-        cls = f.__class__ if not negate else (A.Globally if isinstance(f, A.Eventually) else A.Eventually)
-        return cls(push_negations(f.child, negate), f.interval, pos=f.pos)
+        unary = f.__class__ if not negate else (A.Globally if isinstance(f, A.Eventually) else A.Eventually)
+        return unary(push_negations(f.child, negate), f.interval, pos=f.pos)
     if isinstance(f, (A.Until, A.Release)):
-        cls = f.__class__ if not negate else (A.Release if isinstance(f, A.Until) else A.Until)
-        return cls(push_negations(f.left, negate), push_negations(f.right, negate), f.interval, pos=f.pos)
+        timed = f.__class__ if not negate else (A.Release if isinstance(f, A.Until) else A.Until)
+        return timed(push_negations(f.left, negate), push_negations(f.right, negate), f.interval, pos=f.pos)
     raise CompileError(f"cannot put {type(f).__name__} into negation normal form")
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
@@ -113,7 +114,7 @@ class BinOp(Pred):
     right: Pred
 
     @property
-    def prec(self) -> int:  # type: ignore[override]
+    def prec(self) -> int:
         return _P_ADD if self.op in "+-" else _P_MUL
 
     @property
@@ -156,7 +157,7 @@ class Call(Pred):
         return f"{self.fn}({', '.join(str(a) for a in self.args)})"
 
 
-COMPARISONS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
+COMPARISONS: dict[str, Callable[[np.ndarray | float, np.ndarray | float], np.ndarray]] = {
     "<": np.less,
     "<=": np.less_equal,
     ">": np.greater,
@@ -246,7 +247,12 @@ def is_boolean(p: Pred) -> bool:
     return isinstance(p, (Compare, PAnd, POr, PNot))
 
 
-def compile_numpy(p: Pred, var: Callable[[str], Callable[[object], np.ndarray]]) -> Callable[[object], np.ndarray]:
+_S = TypeVar("_S")  # whatever the compiled closure reads state variables from
+
+
+def compile_numpy(
+    p: Pred, var: Callable[[str], Callable[[_S], np.ndarray | float]]
+) -> Callable[[_S], np.ndarray | float]:
     """Turn a predicate tree into one closure over a batch of states.
 
     ``var(name)`` returns how to read a state variable from the closure's
@@ -262,11 +268,15 @@ def compile_numpy(p: Pred, var: Callable[[str], Callable[[object], np.ndarray]])
 
 
 def _compile(
-    p: Pred, var: Callable[[str], Callable[[object], np.ndarray]], fold: bool
-) -> Callable[[object], np.ndarray]:
+    p: Pred, var: Callable[[str], Callable[[_S], np.ndarray | float]], fold: bool
+) -> Callable[[_S], np.ndarray | float]:
     value = p.value if isinstance(p, Num) else const_value(p) if fold else None
     if value is not None:
-        return lambda x, v=float(value): v
+
+        def constant(x: _S, v: float = float(value)) -> float:
+            return v
+
+        return constant
     if isinstance(p, Var):
         return var(p.name)
     if isinstance(p, Neg):
@@ -290,7 +300,7 @@ def _compile(
             c0, a0, b0 = cmps[0], fs[0], fs[1]
             return lambda x: c0(a0(x), b0(x))
 
-        def chain(x: object) -> np.ndarray:
+        def chain(x: _S) -> np.ndarray:
             values = [f(x) for f in fs]
             out = cmps[0](values[0], values[1])
             for c, a, b in zip(cmps[1:], values[1:], values[2:], strict=False):
@@ -299,9 +309,9 @@ def _compile(
 
         return chain
     if isinstance(p, (PAnd, POr)):
-        op = np.logical_and if isinstance(p, PAnd) else np.logical_or
+        conn = np.logical_and if isinstance(p, PAnd) else np.logical_or
         fl, fr = _compile(p.left, var, fold), _compile(p.right, var, fold)
-        return lambda x: op(fl(x), fr(x))
+        return lambda x: conn(fl(x), fr(x))
     if isinstance(p, PNot):
         f = _compile(p.arg, var, fold)
         return lambda x: np.logical_not(f(x))
@@ -310,6 +320,7 @@ def _compile(
 
 def evaluate(p: Pred, env: Mapping[str, np.ndarray | float]) -> np.ndarray:
     """Evaluate ``p`` elementwise over arrays of state values (broadcasting)."""
+    f: Callable[[Mapping[str, np.ndarray | float]], np.ndarray | float]
     f = compile_numpy(p, lambda name: lambda e: np.asarray(e[name], dtype=float))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.asarray(f(env))
@@ -322,7 +333,8 @@ def const_value(p: Pred) -> float | None:
     if isinstance(p, Num):
         return float(p.value)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return float(_compile(p, lambda name: lambda e: np.nan, fold=False)(None))
+        f: Callable[[None], np.ndarray | float] = _compile(p, lambda name: lambda e: np.nan, fold=False)
+        return float(f(None))
 
 
 # ----------------------------------------------------------------- regions

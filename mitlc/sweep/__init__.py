@@ -20,7 +20,7 @@ One module a step: :mod:`~mitlc.sweep.grid` (axes, weights, the plan),
 :mod:`~mitlc.sweep.summary` (tables and the heat map).
 """
 
-from mitlc.sweep.backends import LocalBackend, RayBackend, WorkerLost, default_workers
+from mitlc.sweep.backends import Backend, LocalBackend, RayBackend, WorkerLost, default_workers
 from mitlc.sweep.grid import (
     Axis,
     SweepPlan,
@@ -40,6 +40,7 @@ from mitlc.sweep.summary import format_table, heatmap_figure, heatmap_grid, summ
 from mitlc.sweep.task import run_task
 
 __all__ = [
+    "Backend",
     "WeightSite",
     "weight_sites",
     "set_weights",

@@ -1,7 +1,8 @@
 """Where a sweep's tasks run: :class:`LocalBackend` (a process pool, no extra dependency)
 and :class:`RayBackend` (``pip install 'mitlc[ray]'``), both retrying tasks whose worker was lost.
 
-A backend is anything with ``describe() -> str`` and ``run(payloads) -> Iterator[(payload, record or exception)]``.
+A backend is anything with ``describe() -> str`` and ``run(payloads) -> Iterator[(payload, record or
+exception)]``: :class:`Backend`.
 """
 
 from __future__ import annotations
@@ -9,12 +10,29 @@ from __future__ import annotations
 import os
 from collections import Counter, deque
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any
+from typing import Any, Protocol
 
 from mitlc.errors import InputError
 from mitlc.sweep.task import run_task
 
 # ---------------------------------------------------------------- backends
+
+
+Outcome = tuple[dict, "dict | BaseException"]
+"""What a backend yields per task: the payload and its record, or the exception it raised."""
+
+
+class Backend(Protocol):
+    """Where tasks run: :func:`mitlc.sweep.run.run_sweep` needs only these two methods."""
+
+    def describe(self) -> str:
+        """One line for the user: where and how many at a time."""
+        ...
+
+    def run(self, payloads: Sequence[dict]) -> Iterator[Outcome]:
+        """Run every payload (:func:`~mitlc.sweep.task.run_task`), yielding ``(payload, record)`` or
+        ``(payload, exception)`` as each finishes, in any order."""
+        ...
 
 
 class WorkerLost(RuntimeError):
@@ -28,9 +46,6 @@ def default_workers() -> int:
     except AttributeError:  # pragma: no cover - not Linux
         cores = os.cpu_count() or 1
     return max(1, min(2, cores))
-
-
-Outcome = tuple[dict, "dict | BaseException"]
 
 
 class LocalBackend:

@@ -224,6 +224,7 @@ def parse_grid(items: Sequence[str], spec: Spec) -> tuple[Axis, ...]:
         texts = [t.strip() for t in raw.split(",")]
         if any(not t for t in texts):
             raise _axis_error(f"'{item}': empty value")
+        parse: Callable[[str], Any]
         if name.startswith("weight."):
             wname = name[len("weight.") :]
             site = by_name.get(wname)
@@ -259,7 +260,7 @@ def parse_grid(items: Sequence[str], spec: Spec) -> tuple[Axis, ...]:
                     _check_setting(key, v)
             except ValueError as exc:
                 raise _axis_error(f"{name}={t}: {exc}") from None
-            if kind == "weight" and v <= 0:
+            if kind == "weight" and float(v) <= 0:
                 raise _axis_error(f"{name}={t}: a weight must be positive")
             if kind == "option" and v not in OPTIONS[key]:
                 raise _axis_error(f"{name}={t}: must be one of {', '.join(OPTIONS[key])}")

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from mitlc.sweep.backends import LocalBackend, RayBackend
+from mitlc.sweep.backends import Backend, LocalBackend
 from mitlc.sweep.grid import SweepPlan, Task
 from mitlc.sweep.store import ResultStore
 
@@ -36,7 +36,7 @@ class SweepOutcome:
 def run_sweep(
     plan: SweepPlan,
     out_dir: str | Path,
-    backend: LocalBackend | RayBackend | None = None,
+    backend: Backend | None = None,
     on_result: Callable[[Task, dict], None] | None = None,
     on_start: Callable[[int, int], None] | None = None,
 ) -> SweepOutcome:

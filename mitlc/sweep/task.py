@@ -23,7 +23,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
 
     Returns the result record: the resolved configuration, ``seed``,
     ``success_rate`` (fraction of runs whose final greedy rollout satisfies the
-    spec by :mod:`mitlc.monitor.offline`), ``final_return`` (mean over runs of the last
+    spec by :mod:`mitlc.monitor`), ``final_return`` (mean over runs of the last
     10 trials' returns), ``greedy_return`` (mean return of those rollouts),
     ``failing`` (for the runs that fail, how many fail by each subformula,
     the monitor's blame), ``wall_s`` and ``cpu_s`` (the task's wall and CPU seconds: a wall time well
