@@ -134,7 +134,7 @@ def metrics_of(learner, ev, wall_s: float) -> dict:
     ``stable_fraction`` of the step from the set-point); ``criteria_success_rate``
     without the second condition.
     """
-    from mitlc.learn.hyrl import STABLE_FRACTION
+    from mitlc.learn.hyrl_eval import STABLE_FRACTION
 
     A = learner.automaton
     step = np.abs(ev.q0 - A.setpoint)
@@ -208,7 +208,8 @@ def train_hybrid_cli(
     """
     from tqdm import tqdm
 
-    from mitlc.learn.hyrl import HybridLearner, HyrlSettings, evaluate, load_learner
+    from mitlc.learn.hyrl import HybridLearner, HyrlSettings, load_learner
+    from mitlc.learn.hyrl_eval import evaluate
     from mitlc.learn.plots import learning_curve, png_bytes
 
     if resume is not None:
@@ -360,7 +361,7 @@ def simulate_hybrid(
     """``mitlc simulate`` for HyRL policies: greedy rollouts from random initial states of the
     spec's set, judged by the checker.  One policy runs on its own automaton (or on ``--spec``'s);
     several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
-    from mitlc.learn.hyrl import _judge, compose, stabilised
+    from mitlc.learn.hyrl_eval import _judge, compose, stabilised
     from mitlc.learn.plots import png_bytes
 
     learners = _load_learners(policy_dirs)
@@ -449,7 +450,7 @@ def compose_cmd(
     handover_sigma: float | None = None,
 ) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
-    from mitlc.learn.hyrl import HANDOVER_SIGMA, brake_bound, compose, train_handover
+    from mitlc.learn.hyrl_eval import HANDOVER_SIGMA, brake_bound, compose, train_handover
     from mitlc.learn.plots import png_bytes
     from mitlc.spec.parse import load_spec
 
