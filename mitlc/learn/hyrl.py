@@ -51,9 +51,7 @@ from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import atomic_write
 from mitlc.hybrid import HybridAutomaton, compile_requirements
 from mitlc.learn.features import Axis, RbfFeatures
-from mitlc.learn.settings import check_fraction, check_non_negative, json_default
-from mitlc.learn.settings import from_dict as settings_from_dict
-from mitlc.learn.settings import to_dict as settings_to_dict
+from mitlc.learn.settings import Settings, check_fraction, check_non_negative, json_default
 from mitlc.plants.base import Plant
 from mitlc.spec.model import Spec
 
@@ -68,7 +66,7 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class HyrlSettings:
+class HyrlSettings(Settings):
     """Settings of the HyRL learner; defaults are Table 3-2 where the thesis gives them."""
 
     gamma: float = 0.98
@@ -172,13 +170,6 @@ class HyrlSettings:
     a good push from a bad one.  Measured (8 runs, seed 1, critic ``stay``, 5 m/s grid):
     rollouts that succeed, overshoot 41% (white) -> 54% (0.1 s), 25% (0.3 s); rise time
     60% -> 64%, runs succeeding from every state 1 -> 5 of 8."""
-
-    def to_dict(self) -> dict:
-        return settings_to_dict(self)
-
-    @staticmethod
-    def from_dict(d: Mapping) -> HyrlSettings:
-        return settings_from_dict(HyrlSettings, d)
 
     def check(self) -> None:
         if self.critic_init not in ("zero", "stay", "constant"):

@@ -62,9 +62,7 @@ from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import save_npz
 from mitlc.learn.features import RbfFeatures
 from mitlc.learn.runtime import NetRuntime
-from mitlc.learn.settings import check_fraction, check_non_negative, json_default
-from mitlc.learn.settings import from_dict as settings_from_dict
-from mitlc.learn.settings import to_dict as settings_to_dict
+from mitlc.learn.settings import Settings, check_fraction, check_non_negative, json_default
 from mitlc.petri.compile import RewardSystem
 from mitlc.plants import make_integrator
 
@@ -72,7 +70,7 @@ __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
 
 
 @dataclass(frozen=True)
-class SacpnSettings:
+class SacpnSettings(Settings):
     """Settings of the SACPN learner; defaults are Table 4-4 where the thesis gives them."""
 
     gamma: float = 0.97
@@ -135,13 +133,6 @@ class SacpnSettings:
 
     bootstrap_timeout: bool = True
     """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not as a terminal state."""
-
-    def to_dict(self) -> dict:
-        return settings_to_dict(self)
-
-    @staticmethod
-    def from_dict(d: Mapping) -> SacpnSettings:
-        return settings_from_dict(SacpnSettings, d)
 
     def check(self) -> None:
         if self.mask not in ("current", "next"):

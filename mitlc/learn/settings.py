@@ -24,6 +24,7 @@ import numpy as np
 from mitlc.errors import InputError, TrainingError
 
 __all__ = [
+    "Settings",
     "to_dict",
     "from_dict",
     "check_fraction",
@@ -55,6 +56,20 @@ def from_dict(cls: type[T], d: Mapping[str, Any]) -> T:
     """Settings of ``cls`` from :func:`to_dict` data; unknown keys (older or newer files) are ignored."""
     known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     return cls(**{k: _tuples(v) for k, v in d.items() if k in known})
+
+
+S = TypeVar("S", bound="Settings")
+
+
+class Settings:
+    """Base of the learners' settings dataclasses: their JSON form and back."""
+
+    def to_dict(self) -> dict:
+        return to_dict(self)
+
+    @classmethod
+    def from_dict(cls: type[S], d: Mapping[str, Any]) -> S:
+        return from_dict(cls, d)
 
 
 def check_fraction(settings: Any, names: Iterable[str]) -> None:
