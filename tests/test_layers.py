@@ -119,3 +119,11 @@ def test_each_stage_says_what_it_may_import(stage: str) -> None:
     said = doc.split("May import:")[1].split("\n\n")[0]
     named = {s for s in ALLOWED if f"mitlc.{s}`" in said}
     assert named == ALLOWED[stage] or said.strip().startswith("every stage"), (stage, named ^ ALLOWED[stage])
+
+
+def test_every_stage_ships_in_the_wheel() -> None:
+    """pyproject.toml lists packages explicitly: a new subpackage must be added there."""
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+    listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    present = {"mitlc"} | {f"mitlc.{p.parent.name}" for p in PACKAGE.glob("*/__init__.py")}
+    assert present <= listed, present - listed
