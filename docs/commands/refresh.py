@@ -38,7 +38,7 @@ def refresh(page: Path) -> str:
                     stdout=subprocess.PIPE,
                     stderr=subprocess.STDOUT,
                     text=True,
-                    timeout=120,
+                    timeout=600,
                 )
                 out.append(line)
                 out.extend(r.stdout.rstrip("\n").splitlines() if r.stdout else [])
