@@ -13,10 +13,13 @@ from typing import Any
 
 import click
 
-from mitlc.errors import MitlError
+from mitlc.errors import InputError, MitlError
 from mitlc.fileio import atomic_write
 
-__all__ = ["handle_errors", "atomic_write"]
+__all__ = ["handle_errors", "atomic_write", "output_option", "write_result", "PICTURES"]
+
+PICTURES = ("svg", "png")
+"""Formats that are rendered pictures (need ``-o FILE``)."""
 
 
 def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -31,3 +34,28 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
             sys.exit(2)
 
     return wrapper
+
+
+def output_option(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """The ``-o/--output FILE`` option of the commands that print a result."""
+    return click.option(
+        "-o",
+        "--output",
+        type=click.Path(dir_okay=False),
+        default=None,
+        help="Write to this file (atomically) instead of standard output.",
+    )(fn)
+
+
+def write_result(output: str | None, fmt: str, make: Callable[[], str | bytes]) -> None:
+    """Write what ``--format fmt`` made: to ``output`` atomically, else text to standard output
+    (a picture format needs ``-o FILE``, checked before anything is made)."""
+    if fmt in PICTURES and output is None:
+        raise InputError(f"--format {fmt} needs -o FILE", file="--output")
+    data = make()
+    if output is not None:
+        atomic_write(output, data)
+    elif isinstance(data, bytes):  # pragma: no cover - pictures always have an output (checked above)
+        raise InputError(f"--format {fmt} needs -o FILE", file="--output")
+    else:
+        click.echo(data, nl=not data.endswith("\n"))

@@ -3,10 +3,11 @@ picture or PNML."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import click
 
-from mitlc.cli.common import atomic_write, handle_errors
-from mitlc.errors import InputError
+from mitlc.cli.common import handle_errors, output_option, write_result
 
 __all__ = ["compile_cmd", "FORMATS"]
 
@@ -23,13 +24,7 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
     show_default=True,
     help="What to write: a readable summary, JSON, Graphviz DOT, a rendered picture, or PNML.",
 )
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="Write to this file (atomically) instead of standard output.",
-)
+@output_option
 @click.option(
     "--conjunction",
     type=click.Choice(["literal", "active"]),
@@ -55,18 +50,12 @@ def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None
     rs = compile_spec(s, CompileOptions.from_spec(s, conjunction=conjunction, violations=violations))
     from mitlc.petri.render import render_bytes, to_digraph
 
-    if fmt in ("svg", "png"):
-        if output is None:
-            raise InputError(f"--format {fmt} needs -o FILE", file="--output")
-        atomic_write(output, render_bytes(rs, fmt))
-        return
-    text = {
-        "text": export.to_text,
-        "json": export.to_json,
-        "dot": lambda r: to_digraph(r).source,
-        "pnml": export.to_pnml,
-    }[fmt](rs)
-    if output is None:
-        click.echo(text, nl=not text.endswith("\n"))
-    else:
-        atomic_write(output, text)
+    makers: dict[str, Callable[[], str | bytes]] = {
+        "text": lambda: export.to_text(rs),
+        "json": lambda: export.to_json(rs),
+        "dot": lambda: to_digraph(rs).source,
+        "pnml": lambda: export.to_pnml(rs),
+        "svg": lambda: render_bytes(rs, "svg"),
+        "png": lambda: render_bytes(rs, "png"),
+    }
+    write_result(output, fmt, makers[fmt])

@@ -24,14 +24,14 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import click
 import numpy as np
 
-from mitlc.cli.common import atomic_write, handle_errors
+from mitlc.cli.common import atomic_write, handle_errors, output_option, write_result
 from mitlc.errors import InputError, TrainingError
 from mitlc.spec.model import Spec
 
@@ -309,13 +309,7 @@ def train_hybrid_cli(
     show_default=True,
     help="What to write: a readable summary, JSON, Graphviz DOT or a rendered picture.",
 )
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="Write to this file (atomically) instead of standard output.",
-)
+@output_option
 @handle_errors
 def automaton(spec: str, fmt: str, output: str | None) -> None:
     """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B)."""
@@ -326,18 +320,14 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
     for w in s.warnings:
         click.echo(w, err=True)
     h = compile_requirements(s)
-    if fmt in ("svg", "png"):
-        if output is None:
-            raise InputError(f"--format {fmt} needs -o FILE", file="--output")
-        atomic_write(output, render_bytes(h, fmt))
-        return
-    text = {"text": lambda: str(h) + "\n", "json": lambda: h.to_json() + "\n", "dot": lambda: h.to_digraph().source}[
-        fmt
-    ]()
-    if output is None:
-        click.echo(text, nl=False)
-    else:
-        atomic_write(output, text)
+    makers: dict[str, Callable[[], str | bytes]] = {
+        "text": lambda: str(h) + "\n",
+        "json": lambda: h.to_json() + "\n",
+        "dot": lambda: h.to_digraph().source,
+        "svg": lambda: render_bytes(h, "svg"),
+        "png": lambda: render_bytes(h, "png"),
+    }
+    write_result(output, fmt, makers[fmt])
 
 
 # ---------------------------------------------------------------- mitlc simulate (HyRL policies)
