@@ -761,6 +761,23 @@ def test_check_formula_option(p5: Path, tmp_path: Path) -> None:
     assert res.exit_code == 2 and "--formula" in res.output
 
 
+def test_check_a_require_spec_needs_a_formula_option(tmp_path: Path) -> None:
+    """A spec of require lines has no formula to judge by: --formula gives one, else one line, exit 2."""
+    spec = tmp_path / "req.mitl"
+    spec.write_text(
+        "plant mass-damper\ninit q in [-1, -0.5], qdot = 0\nsetpoint 0\nprop near = abs(q) < 0.1\n"
+        "require overshoot <= 0\n"
+    )
+    trace = tmp_path / "t.csv"
+    trace.write_text("t,q,qdot\n0,-1,0\n0.03,-0.5,0\n0.06,0.05,0\n")
+    res = check(str(spec), str(trace), "--formula", "F near")
+    assert res.exit_code == 0, res.output
+    res = check(str(spec), str(trace))
+    assert res.exit_code == 2
+    assert res.output.startswith(f"{spec}: error: the spec has no 'formula' nor 'check' line")
+    assert "Traceback" not in res.output
+
+
 def test_check_trace_time_offset(p5: Path, tmp_path: Path) -> None:
     trace = [[10.0 + r[0], r[1], r[2]] for r in rows(LATE)]
     res = check(str(p5), str(write_csv(tmp_path / "late.csv", trace)))

@@ -42,13 +42,10 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
     Prints the verdict, the robustness, the first time of violation and the
     failing subformula. Exit code 0 if satisfied, 1 if violated, 2 on bad input.
     """
-    from mitlc.monitor.offline import monitor, needed_variables, state_columns
+    from mitlc.monitor.offline import judged_formula, monitor, needed_variables, state_columns
     from mitlc.spec.parse import load_spec, parse_formula
 
     s = load_spec(spec)
-    formula = s.monitor_formula
-    if formula is None:
-        raise InputError("the spec has no formula or check line to judge a trace by", file=spec)
     if formula_text is not None:
         try:
             formula = parse_formula(formula_text)
@@ -56,6 +53,7 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
         except MitlError as exc:
             raise exc.located("--formula", formula_text) from None
     else:
+        formula = judged_formula(s)
         needed = needed_variables(s, formula)
     tr, dt = read_trace(trace, needed, state_columns(s))
     try:

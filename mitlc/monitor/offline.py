@@ -64,7 +64,16 @@ from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
 
-__all__ = ["MonitorResult", "monitor", "signals", "offsets", "state_columns", "needed_variables", "TIME_TOL"]
+__all__ = [
+    "MonitorResult",
+    "monitor",
+    "signals",
+    "offsets",
+    "state_columns",
+    "needed_variables",
+    "judged_formula",
+    "TIME_TOL",
+]
 
 
 # ----------------------------------------------------------------- result
@@ -582,16 +591,25 @@ def _shape_of_mapping(states: Mapping[str, Any]) -> tuple[int, int]:
     raise InputError("no state values given: cannot tell the trace length")
 
 
-def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> tuple[_Eval, A.Formula]:
+def judged_formula(spec: Spec, formula: A.Formula | None = None) -> A.Formula:
+    """What a trace is judged by: ``formula`` if given, else the spec's ``check`` line, else its
+    ``formula``; a :class:`SpecError` when there is none (a spec of ``require`` lines only)."""
     f = spec.monitor_formula if formula is None else formula
+    if f is None:
+        raise SpecError(
+            "the spec has no 'formula' nor 'check' line to judge a trace by; pass a formula", file=spec.path
+        )
+    return f
+
+
+def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> tuple[_Eval, A.Formula]:
     try:
         dt = float(dt)
     except (TypeError, ValueError):
         raise InputError(f"sample time must be a number, got {dt!r}") from None
     if not (math.isfinite(dt) and dt > 0):
         raise InputError(f"sample time must be positive and finite, got {dt}")
-    if f is None:
-        raise SpecError("the spec has no 'formula' nor 'check' line to judge a trace by; pass a formula")
+    f = judged_formula(spec, formula)
     needed = needed_variables(spec, f)
     env, R, L = _environment(spec, states, needed)
     return _Eval(spec, env, dt, R, L), f
