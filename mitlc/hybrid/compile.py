@@ -162,15 +162,6 @@ class _Criterion:
     doc: str = ""
 
 
-_CRITERIA: dict[str, Callable[[Requirement, _Builder], _Criterion]] = {}
-"""The builder of each criterion's contribution (filled below, in :data:`ORDER`)."""
-
-
-def _criteria(spec: Spec, b: _Builder) -> list[_Criterion]:
-    reqs = {r.name: r for r in spec.requirements}
-    return [_CRITERIA[name](reqs[name], b) for name in ORDER if name in reqs]
-
-
 def _rise_time(r: Requirement, b: _Builder) -> _Criterion:
     """Rise time within ``[lo, hi]`` s (Table B-3)."""
     lo, hi = r.lo, r.hi
@@ -256,12 +247,18 @@ def _steady_state_error(r: Requirement, b: _Builder) -> _Criterion:
     )
 
 
-_CRITERIA.update(
-    rise_time=_rise_time,
-    overshoot=_overshoot,
-    settling_time=_settling_time,
-    steady_state_error=_steady_state_error,
-)
+_CRITERIA: dict[str, Callable[[Requirement, _Builder], _Criterion]] = {
+    "rise_time": _rise_time,
+    "overshoot": _overshoot,
+    "settling_time": _settling_time,
+    "steady_state_error": _steady_state_error,
+}
+"""The builder of each criterion's contribution."""
+
+
+def _criteria(spec: Spec, b: _Builder) -> list[_Criterion]:
+    reqs = {r.name: r for r in spec.requirements}
+    return [_CRITERIA[name](reqs[name], b) for name in ORDER if name in reqs]
 
 
 def _located(err: SpecError, r: Requirement) -> SpecError:

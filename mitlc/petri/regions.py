@@ -3,11 +3,13 @@ region net per group (thesis section 4-2, net C-2)."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
+
+import numpy as np
 
 from mitlc.petri.net import Guard
 from mitlc.petri.parts import Arc, Part
+from mitlc.plants import wrap_angle
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
@@ -49,7 +51,8 @@ def region_net(spec: Spec, group: tuple[str, ...], unique: Callable[[str], str])
     guarded by the target's region. ``unique`` makes each place name unused."""
     places = [(unique(f"p_{a}"), a) for a in group]
     regions: list[A.Formula] = [A.Atom(a) for a in group]
-    if not covers(spec, group):
+    whole = covers(spec, group)
+    if not whole:
         if len(group) == 1:
             places.append((unique(f"p_not_{group[0]}"), f"!{group[0]}"))
             regions.append(A.Not(A.Atom(group[0])))
@@ -62,19 +65,20 @@ def region_net(spec: Spec, group: tuple[str, ...], unique: Callable[[str], str])
     arcs: list[Arc] = [
         (i, j, Guard.state(regions[j])) for i in range(len(places)) for j in range(len(places)) if i != j
     ]
-    initial = initial_region(spec, group)
+    initial = initial_region(spec, group, whole)
     return Part(f"region({', '.join(group)})", "state", "region", places, arcs, initial)
 
 
-def initial_region(spec: Spec, group: tuple[str, ...]) -> int:
-    """The place marked first: the region of the centre of the spec's initial set."""
+def initial_region(spec: Spec, group: tuple[str, ...], whole: bool) -> int:
+    """The place marked first: the region of the centre of the spec's initial set (``whole``:
+    the group's regions cover the state space, so there is no "none" place)."""
     point = init_point(spec)
     if point is not None:
         for i, a in enumerate(group):
             pred = spec.prop(a).pred
             if all(v.name in point for v in P.variables(pred)) and bool(P.evaluate(pred, point)):
                 return i
-    return len(group) if not covers(spec, group) else 0
+    return 0 if whole else len(group)
 
 
 def init_point(spec: Spec) -> dict[str, float] | None:
@@ -87,5 +91,5 @@ def init_point(spec: Spec) -> dict[str, float] | None:
         for v in plant.state:
             point.setdefault(v.name, 0.0)
             if v.periodic:
-                point[v.name] = float((point[v.name] + math.pi) % (2 * math.pi) - math.pi)
+                point[v.name] = float(wrap_angle(np.float64(point[v.name])))
     return point
