@@ -8,6 +8,7 @@ from collections.abc import Callable
 import click
 
 from mitlc.cli.common import handle_errors, output_option, write_result
+from mitlc.spec.model import OPTIONS
 
 __all__ = ["compile_cmd", "FORMATS"]
 
@@ -27,13 +28,13 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
 @output_option
 @click.option(
     "--conjunction",
-    type=click.Choice(["literal", "active"]),
+    type=click.Choice(OPTIONS["conjunction"]),
     default=None,
     help="How '&' combines gated terms (overrides the spec's option).",
 )
 @click.option(
     "--violations",
-    type=click.Choice(["off", "permanent", "counted"]),
+    type=click.Choice(OPTIONS["violations"]),
     default=None,
     help="Track violations of safety and deadline parts (overrides the spec's option).",
 )

@@ -28,6 +28,7 @@ import numpy as np
 
 from mitlc.cli.common import atomic_write, handle_errors
 from mitlc.errors import InputError, TrainingError
+from mitlc.spec.model import OPTIONS
 
 __all__ = ["train", "simulate", "find_default_spec", "SPECS_DIRS"]
 
@@ -202,13 +203,13 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
 )
 @click.option(
     "--conjunction",
-    type=click.Choice(["literal", "active"]),
+    type=click.Choice(OPTIONS["conjunction"]),
     default=None,
     help="How '&' combines gated terms (overrides the spec's option).",
 )
 @click.option(
     "--violations",
-    type=click.Choice(["off", "permanent", "counted"]),
+    type=click.Choice(OPTIONS["violations"]),
     default=None,
     help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).",
 )

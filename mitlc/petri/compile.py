@@ -56,7 +56,7 @@ from mitlc.petri.violations import (
     bounds_without_violation,
 )
 from mitlc.spec import ast as A
-from mitlc.spec.model import Spec
+from mitlc.spec.model import OPTIONS, Spec
 from mitlc.spec.passes import is_state_formula, normal_form
 
 __all__ = ["CompileOptions", "RewardSystem", "compile_spec", "reward_reading", "state_groups"]
@@ -471,9 +471,9 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
             file=spec.path,
         )
     options = options or CompileOptions.from_spec(spec)
-    if options.conjunction not in ("literal", "active"):
+    if options.conjunction not in OPTIONS["conjunction"]:
         raise CompileError(f"unknown conjunction reading '{options.conjunction}' (literal or active)")
-    if options.violations not in ("off", "permanent", "counted"):
+    if options.violations not in OPTIONS["violations"]:
         raise CompileError(f"unknown violations mode '{options.violations}' (off, permanent or counted)")
     if options.violations != "off" and _last_sample(spec) is None:
         raise CompileError(
