@@ -15,7 +15,6 @@ import click
 
 from mitlc.cli.common import handle_errors
 from mitlc.errors import InputError, MitlError
-from mitlc.monitor.trace import read_trace
 
 __all__ = ["check"]
 
@@ -43,6 +42,7 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
     failing subformula. Exit code 0 if satisfied, 1 if violated, 2 on bad input.
     """
     from mitlc.monitor.offline import judged_formula, monitor, needed_variables, state_columns
+    from mitlc.monitor.trace import read_trace
     from mitlc.spec.parse import load_spec, parse_formula
 
     s = load_spec(spec)

@@ -55,7 +55,6 @@ def write_result(output: str | None, fmt: str, make: Callable[[], str | bytes]) 
     data = make()
     if output is not None:
         atomic_write(output, data)
-    elif isinstance(data, bytes):  # pragma: no cover - pictures always have an output (checked above)
-        raise InputError(f"--format {fmt} needs -o FILE", file="--output")
-    else:
-        click.echo(data, nl=not data.endswith("\n"))
+        return
+    assert isinstance(data, str)  # only pictures are bytes, and they were refused above without -o
+    click.echo(data, nl=not data.endswith("\n"))
