@@ -3,8 +3,9 @@
     python docs/make_architecture.py       # from the repository root, about a second
     python docs/make_architecture.py --out DIR    # write architecture.svg / .png to DIR instead
 
-Every module under ``mitlc/`` is parsed with :mod:`ast`; every import of a ``mitlc``
-module counts, the ones inside functions too, and so does
+Every module under ``mitlc/`` is read by the import reader of tests/test_layers.py (the
+layer rule's own); every import of a ``mitlc`` module counts, the ones inside functions
+too, and so does
 ``importlib.import_module("mitlc....")`` with a literal name (drawn dashed: the gym
 wrapper's optional monitor).  A module belongs to the stage of the first folder under
 ``mitlc/`` (``gym.py``, ``errors.py`` and ``fileio.py`` are stages of one file);
@@ -16,7 +17,6 @@ The base modules get no edges, only the number of stages that import them.
 
 from __future__ import annotations
 
-import ast
 import sys
 from collections import defaultdict
 from html import escape
@@ -29,8 +29,10 @@ sys.path.insert(0, str(ROOT))
 
 from mitlc.fileio import atomic_write
 
+sys.path.insert(0, str(ROOT / "tests"))
+from test_layers import FACADE, imported, modules, stage_of_file, stage_of_module  # the layer test's own reader
+
 COMMAND = "python docs/make_architecture.py"
-PACKAGE = ROOT / "mitlc"
 OUT = ROOT / "docs" / "figures" / "architecture"
 
 STAGES: dict[str, tuple[str, str]] = {
@@ -47,45 +49,20 @@ STAGES: dict[str, tuple[str, str]] = {
 """The pipeline's stages in data-flow order: stage -> (what goes in, what comes out)."""
 BASE = {"errors": "MitlError", "fileio": "atomic_write"}
 """The modules any stage may import: module -> what it offers."""
-FACADE = {"__init__", "__main__"}
 
 Deps = dict[tuple[str, str], list[tuple[str, bool]]]
 """(imported stage, importing stage) -> [("file:line", by importlib)]."""
 
 
-def stage_of(path: Path) -> str:
-    rel = path.relative_to(PACKAGE)
-    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
-
-
-def imports(path: Path) -> list[tuple[str, int, bool]]:
-    """(stage, line, by importlib) for every import of a ``mitlc`` module in ``path``."""
-    out: list[tuple[str, int, bool]] = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
-        names: list[str] = []
-        lazy = False
-        if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            names = [f"mitlc.{a.name}" for a in node.names] if node.module == "mitlc" else [node.module]
-        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "import_module":
-            arg = node.args[0] if node.args else None
-            names, lazy = ([arg.value] if isinstance(arg, ast.Constant) and isinstance(arg.value, str) else []), True
-        for name in names:
-            parts = name.split(".")
-            if parts[0] == "mitlc" and len(parts) > 1 and (parts[1] in STAGES or parts[1] in BASE):
-                out.append((parts[1], getattr(node, "lineno", 0), lazy))
-    return out
-
-
 def dependencies() -> Deps:
     deps: Deps = defaultdict(list)
-    for path in sorted(PACKAGE.rglob("*.py")):
-        own = stage_of(path)
+    for path in modules():
+        own = stage_of_file(path)
         if own in FACADE:
             continue
-        for other, line, lazy in imports(path):
-            if other != own:
+        for line, dotted, lazy in imported(path, by_importlib=True):  # type: ignore[misc]
+            other = stage_of_module(dotted)
+            if other != own and (other in STAGES or other in BASE):
                 deps[(other, own)].append((f"{path.relative_to(ROOT)}:{line}", lazy))
     return dict(deps)
 

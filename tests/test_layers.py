@@ -53,19 +53,21 @@ def stage_of_file(path: Path) -> str:
     return rel.parts[0] if len(rel.parts) > 1 else rel.stem
 
 
-def imported(path: Path) -> list[tuple[int, str]]:
-    """(line, dotted module) of every absolute import of a ``mitlc`` module in ``path``."""
-    tree = ast.parse(path.read_text(), filename=str(path))
-    out = []
+def imported(path: Path, by_importlib: bool = False) -> list[tuple[int, str]] | list[tuple[int, str, bool]]:
+    """(line, dotted module) of every absolute import of a ``mitlc`` module in ``path``; with
+    ``by_importlib`` a third field says whether it is an ``importlib.import_module`` call
+    (docs/make_architecture.py draws those dashed)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    out: list[tuple[int, str, bool]] = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            out += [(node.lineno, a.name) for a in node.names]
+            out += [(node.lineno, a.name, False) for a in node.names]
         elif isinstance(node, ast.ImportFrom):
             assert node.level == 0, f"{path}:{node.lineno}: use absolute imports"
             if node.module == "mitlc":  # from mitlc import x: x is a stage or a name of the facade
-                out += [(node.lineno, f"mitlc.{a.name}") for a in node.names]
+                out += [(node.lineno, f"mitlc.{a.name}", False) for a in node.names]
             elif node.module:
-                out.append((node.lineno, node.module))
+                out.append((node.lineno, node.module, False))
         elif (
             isinstance(node, ast.Call)
             and isinstance(node.func, ast.Attribute)
@@ -74,8 +76,9 @@ def imported(path: Path) -> list[tuple[int, str]]:
             and isinstance(node.args[0], ast.Constant)
             and isinstance(node.args[0].value, str)
         ):  # importlib.import_module("mitlc.x"): a dependency all the same
-            out.append((node.lineno, node.args[0].value))
-    return [(line, m) for line, m in out if m.split(".")[0] == "mitlc"]
+            out.append((node.lineno, node.args[0].value, True))
+    ours = [t for t in out if t[1].split(".")[0] == "mitlc"]
+    return ours if by_importlib else [(line, m) for line, m, _ in ours]
 
 
 def test_every_file_has_a_stage() -> None:
