@@ -60,7 +60,7 @@ def dependencies() -> Deps:
         own = stage_of_file(path)
         if own in FACADE:
             continue
-        for line, dotted, lazy in imported(path, by_importlib=True):  # type: ignore[misc]
+        for line, dotted, lazy in imported(path):
             other = stage_of_module(dotted)
             if other != own and (other in STAGES or other in BASE):
                 deps[(other, own)].append((f"{path.relative_to(ROOT)}:{line}", lazy))

@@ -53,10 +53,9 @@ def stage_of_file(path: Path) -> str:
     return rel.parts[0] if len(rel.parts) > 1 else rel.stem
 
 
-def imported(path: Path, by_importlib: bool = False) -> list[tuple[int, str]] | list[tuple[int, str, bool]]:
-    """(line, dotted module) of every absolute import of a ``mitlc`` module in ``path``; with
-    ``by_importlib`` a third field says whether it is an ``importlib.import_module`` call
-    (docs/make_architecture.py draws those dashed)."""
+def imported(path: Path) -> list[tuple[int, str, bool]]:
+    """(line, dotted module, by importlib) of every absolute import of a ``mitlc`` module in
+    ``path`` (docs/make_architecture.py draws the ``importlib.import_module`` ones dashed)."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     out: list[tuple[int, str, bool]] = []
     for node in ast.walk(tree):
@@ -77,8 +76,7 @@ def imported(path: Path, by_importlib: bool = False) -> list[tuple[int, str]] | 
             and isinstance(node.args[0].value, str)
         ):  # importlib.import_module("mitlc.x"): a dependency all the same
             out.append((node.lineno, node.args[0].value, True))
-    ours = [t for t in out if t[1].split(".")[0] == "mitlc"]
-    return ours if by_importlib else [(line, m) for line, m, _ in ours]
+    return [t for t in out if t[1].split(".")[0] == "mitlc"]
 
 
 def test_every_file_has_a_stage() -> None:
@@ -92,7 +90,7 @@ def test_no_import_of_a_later_stage(path: Path) -> None:
     if own in FACADE:
         return
     bad = []
-    for line, dotted in imported(path):
+    for line, dotted, _ in imported(path):
         other = stage_of_module(dotted)
         if other == "__version__" or other == own:
             continue
@@ -110,7 +108,7 @@ def test_the_checker_sees_a_violation(tmp_path: Path) -> None:
         "def f():\n    from mitlc.cli.main import main\n    import mitlc.learn.sacpn\n"
         "    importlib.import_module('mitlc.sweep.run')\n"
     )
-    assert imported(f) == [(2, "mitlc.cli.main"), (3, "mitlc.learn.sacpn"), (4, "mitlc.sweep.run")]
+    assert imported(f) == [(2, "mitlc.cli.main", False), (3, "mitlc.learn.sacpn", False), (4, "mitlc.sweep.run", True)]
 
 
 @pytest.mark.parametrize("stage", sorted(s for s in ALLOWED if (PACKAGE / s).is_dir() or s == "gym"))
