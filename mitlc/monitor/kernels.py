@@ -13,14 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.spec import ast as A
+from mitlc.spec.ast import TIME_TOL, offsets
 
 __all__ = ["Lattice", "BOOL", "REAL", "TIME_TOL", "offsets", "shift", "window", "until", "until_unbounded"]
-
-TIME_TOL = 1e-9
-"""Tolerance (seconds, relative to the bound when it exceeds 1) when a sample
-time is compared with an interval end."""
-
 
 # ----------------------------------------------------------------- lattices
 
@@ -48,45 +43,6 @@ REAL = Lattice("real", np.maximum, np.minimum, -np.inf, np.inf, float)
 
 
 # ----------------------------------------------------------------- intervals
-
-
-def offsets(interval: A.Interval, dt: float) -> tuple[int, float]:
-    """Sample offsets ``(lo, hi)`` of ``interval``: ``j`` is in it iff ``lo <= j <= hi``.
-
-    ``hi`` is ``inf`` for an unbounded interval; ``lo > hi`` means no sample
-    offset falls in the interval.
-
-    >>> offsets(A.Interval(1, 2, lo_closed=False), 0.5)
-    (3, 4)
-    >>> offsets(A.Interval(0, 1, hi_closed=False), 0.5)
-    (0, 1)
-    >>> offsets(A.Interval(0.3, 0.6), 0.1)
-    (3, 6)
-    >>> offsets(A.Interval(0.1, 0.2, False, False), 0.5)
-    (1, 0)
-    >>> offsets(A.UNBOUNDED, 0.03)
-    (0, inf)
-    """
-    lo_tol = TIME_TOL * max(1.0, abs(interval.lo))
-    if interval.lo_closed:
-        lo = math.ceil((interval.lo - lo_tol) / dt)
-    else:
-        lo = math.floor((interval.lo + lo_tol) / dt) + 1
-    lo = max(lo, 0)
-    if math.isinf(interval.hi):
-        return lo, math.inf
-    hi_tol = TIME_TOL * max(1.0, abs(interval.hi))
-    if interval.hi_closed:
-        x = (interval.hi + hi_tol) / dt
-        if not math.isfinite(x):
-            return lo, math.inf
-        hi = math.floor(x)
-    else:
-        x = (interval.hi - hi_tol) / dt
-        if not math.isfinite(x):
-            return lo, math.inf
-        hi = math.ceil(x) - 1
-    return lo, hi
 
 
 # ----------------------------------------------------------------- kernels

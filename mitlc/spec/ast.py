@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 __all__ = [
     "Pos",
     "Interval",
+    "TIME_TOL",
+    "offsets",
     "Formula",
     "Const",
     "Atom",
@@ -103,6 +105,51 @@ class Interval:
 
 
 UNBOUNDED = Interval(0.0, math.inf)
+
+
+TIME_TOL = 1e-9
+"""Tolerance (seconds, relative to the bound when it exceeds 1) when a sample
+time is compared with an interval end."""
+
+
+def offsets(interval: Interval, dt: float) -> tuple[int, float]:
+    """Sample offsets ``(lo, hi)`` of ``interval``: ``j`` is in it iff ``lo <= j <= hi``.
+
+    ``hi`` is ``inf`` for an unbounded interval; ``lo > hi`` means no sample
+    offset falls in the interval.
+
+    >>> offsets(Interval(1, 2, lo_closed=False), 0.5)
+    (3, 4)
+    >>> offsets(Interval(0, 1, hi_closed=False), 0.5)
+    (0, 1)
+    >>> offsets(Interval(0.3, 0.6), 0.1)
+    (3, 6)
+    >>> offsets(Interval(0.1, 0.2, False, False), 0.5)
+    (1, 0)
+    >>> offsets(UNBOUNDED, 0.03)
+    (0, inf)
+    """
+    lo_tol = TIME_TOL * max(1.0, abs(interval.lo))
+    if interval.lo_closed:
+        lo = math.ceil((interval.lo - lo_tol) / dt)
+    else:
+        lo = math.floor((interval.lo + lo_tol) / dt) + 1
+    lo = max(lo, 0)
+    if math.isinf(interval.hi):
+        return lo, math.inf
+    hi_tol = TIME_TOL * max(1.0, abs(interval.hi))
+    if interval.hi_closed:
+        x = (interval.hi + hi_tol) / dt
+        if not math.isfinite(x):
+            return lo, math.inf
+        hi = math.floor(x)
+    else:
+        x = (interval.hi - hi_tol) / dt
+        if not math.isfinite(x):
+            return lo, math.inf
+        hi = math.ceil(x) - 1
+    return lo, hi
+
 
 # Binding strength used by the printer; higher binds tighter.
 _PREC_IFF, _PREC_IMPLIES, _PREC_OR, _PREC_AND, _PREC_TEMPORAL, _PREC_UNARY, _PREC_ATOM = range(1, 8)

@@ -1,0 +1,144 @@
+"""The contract between the timed obligation net and the monitor (docs/semantics.md, section 7).
+
+For a random formula (depth up to 4, every operator, nested bounded and unbounded
+intervals, open and closed ends, some off the sample grid) the net is run on *every*
+trace of 6 samples over two propositions (4096 traces), and the monitor judges the
+same traces.  Grouping the traces by their first ``k + 1`` samples gives, for every
+prefix, the exact set of its continuations, so the tests check:
+
+(a) the net records a violation (or a success) at sample ``k`` only when every
+    continuation of the prefix is violating (satisfying);
+(b) at the last sample the net's verdict is the monitor's;
+(c) for a deadline part (a temporal operator over state formulas, at the root or
+    under untimed operators) the violation is recorded at the first sample at
+    which no continuation can meet it, and never changes afterwards.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import strategies
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mitlc.monitor.offline import monitor
+from mitlc.petri.timed import FAILED, FALSE, MET, PENDING, TRUE, ObligationTree, TimedState
+from mitlc.spec import ast as A
+from mitlc.spec.parse import parse_spec
+from mitlc.spec.passes import normal_form
+
+N = 5  # samples 0..5
+L = N + 1
+SPEC = parse_spec("prop a = x > 0.5\nprop b = y > 0.5\nformula a")
+CODES = np.arange(4**L)
+BITS = np.stack([(CODES >> (2 * j)) & 3 for j in range(L)], axis=1)  # (traces, samples) atom codes
+STATES = np.stack([BITS & 1, BITS >> 1], axis=2).astype(float)  # columns x, y
+
+
+def truth_at(k: int) -> dict[str, np.ndarray]:
+    return {"a": (BITS[:, k] & 1).astype(bool), "b": (BITS[:, k] >> 1).astype(bool)}
+
+
+def run(f: A.Formula, dt: float = 1.0) -> tuple[np.ndarray, TimedState]:
+    """The net's verdict after each sample, ``(traces, L)``."""
+    state = TimedState(ObligationTree.build(normal_form(f)), dt, len(CODES), N)
+    out = np.empty((len(CODES), L), dtype=np.int8)
+    for k in range(L):
+        state.observe(truth_at(k))
+        out[:, k] = state.verdict()
+    return out, state
+
+
+def prefix_verdicts(sat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(all continuations satisfy, all violate)`` for every trace's prefix of each length, ``(traces, L)``."""
+    every, none = np.empty((len(CODES), L), bool), np.empty((len(CODES), L), bool)
+    for k in range(L):
+        group = CODES % (4 ** (k + 1))  # the first k + 1 samples
+        n_sat = np.bincount(group, weights=sat, minlength=4 ** (k + 1))
+        size = np.bincount(group, minlength=4 ** (k + 1))
+        every[:, k] = n_sat[group] == size[group]
+        none[:, k] = n_sat[group] == 0
+    return every, none
+
+
+intervals = st.one_of(strategies.grid_intervals(step=1.0, max_end=4), strategies.grid_intervals(step=0.5, max_end=7))
+nested = strategies.formulas(atoms=("a", "b"), interval=intervals, max_leaves=6).filter(lambda f: A.depth(f) <= 4)
+
+
+@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(nested)
+def test_never_early_and_exact_at_the_end(f: A.Formula) -> None:
+    verdict, _ = run(f)
+    sat = monitor(SPEC, STATES, 1.0, formula=f).satisfied
+    every, none = prefix_verdicts(sat)
+    # (a) sound at every prefix, both ways
+    assert not np.any((verdict == FALSE) & ~none), f"premature violation of {f}"
+    assert not np.any((verdict == TRUE) & ~every), f"premature success of {f}"
+    # decided values never change
+    decided = verdict != PENDING
+    assert np.all(verdict[:, 1:][decided[:, :-1]] == verdict[:, :-1][decided[:, :-1]])
+    # (b) the end verdict is the monitor's
+    np.testing.assert_array_equal(verdict[:, -1] == TRUE, sat, err_msg=str(f))
+    assert not np.any(verdict[:, -1] == PENDING)
+
+
+deadline_ops = st.sampled_from(["F", "G", "U", "R"])
+states = strategies.state_formulas(atoms=("a", "b"), max_leaves=3)
+
+
+@st.composite
+def deadline_parts(draw: st.DrawFn) -> A.Formula:
+    op, iv = draw(deadline_ops), draw(intervals)
+    left, right = draw(states), draw(states)
+    part: A.Formula = {
+        "F": lambda: A.Eventually(right, iv),
+        "G": lambda: A.Globally(right, iv),
+        "U": lambda: A.Until(left, right, iv),
+        "R": lambda: A.Release(left, right, iv),
+    }[op]()
+    if draw(st.booleans()):  # a state context that does not decide it
+        part = A.And(part, A.Const(True)) if draw(st.booleans()) else A.Or(part, A.Const(False))
+    return part
+
+
+@settings(max_examples=300, deadline=None)
+@given(deadline_parts())
+def test_deadline_recorded_at_the_first_sample_that_decides_it(f: A.Formula) -> None:
+    verdict, _ = run(f)
+    sat = monitor(SPEC, STATES, 1.0, formula=f).satisfied
+    every, none = prefix_verdicts(sat)
+    # (c) exact: decided as soon as the prefix decides it
+    np.testing.assert_array_equal(verdict == FALSE, none, err_msg=str(f))
+    np.testing.assert_array_equal(verdict == TRUE, every, err_msg=str(f))
+
+
+def test_bounded_response_missed_deadline_by_hand() -> None:
+    """``G (a -> F[0,2] b)``: a at samples 1 and 4, b at 2 only; the second response misses at 6."""
+    f = A.Globally(A.Implies(A.Atom("a"), A.Eventually(A.Atom("b"), A.Interval(0, 2))))
+    tree = ObligationTree.build(normal_form(f))
+    state = TimedState(tree, 1.0, 1, 7)
+    a = [0, 1, 0, 0, 1, 0, 0, 0]
+    b = [0, 0, 1, 0, 0, 0, 0, 0]
+    seen = []
+    for k in range(8):
+        state.observe({"a": np.array([bool(a[k])]), "b": np.array([bool(b[k])])})
+        seen.append(int(state.places()[tree.root][0]))
+    assert seen.index(FAILED) == 6  # the obligation from t = 4 ends at t = 6 without b
+    (f_node,) = [i for i in tree.temporal if tree.nodes[i].op == "F"]
+    assert state.clocks()[f_node][0] != state.clocks()[f_node][0]  # nan: no live instance after the failure
+
+
+def test_reach_and_stay_in_time_by_hand() -> None:
+    """``F[0,2] G g``: g from t = 1 on meets it; the G obligation stays live after 2 s."""
+    f = A.Eventually(A.Globally(A.Atom("g")), A.Interval(0, 2))
+    tree = ObligationTree.build(f)
+    state = TimedState(tree, 1.0, 2, 5)
+    g = np.array([[0, 1, 1, 1, 1, 1], [0, 0, 0, 1, 1, 1]], dtype=bool)  # the second run is late
+    places = []
+    for k in range(6):
+        state.observe({"g": g[:, k]})
+        places.append(state.places())
+    G = tree.nodes[tree.root].children[0]
+    assert [int(p[G][0]) for p in places[:5]] == [1, 1, 1, 1, 1]  # open: the next sample keeps it
+    assert [int(p[tree.root][1]) for p in places] == [1, 1, 4, 4, 4, 4]  # failed once 2 s pass without g
+    assert [int(p[tree.root][0]) for p in places] == [1, 1, 2, 2, 2, MET]  # open, then waits on G, met at the end
