@@ -20,7 +20,7 @@ PROBLEMS = [k for k in FIXTURES if not k.startswith("_")]
 
 def compiled(name: str, conjunction: str = "literal"):
     spec = load_spec(ROOT / "specs" / "pendulum" / f"{name}.mitl")
-    return compile_spec(spec, CompileOptions(conjunction=conjunction))
+    return compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction))
 
 
 @pytest.mark.parametrize("name", PROBLEMS)

@@ -64,7 +64,8 @@ def test_pnml_read_back_by_pm4py(spec_path: Path, violations: str, tmp_path: Pat
     pm4py = pytest.importorskip("pm4py", reason="pm4py (test-only PNML reader) is not installed: pip install '.[test]'")
     from pm4py.util.constants import PLACE_NAME_TAG
 
-    rs = compile_spec(load_spec(spec_path), CompileOptions(violations=violations))
+    spec = load_spec(spec_path)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=violations))
     path = tmp_path / f"{spec_path.stem}.pnml"
     path.write_text(to_pnml(rs), encoding="utf-8")
     net, initial, final = pm4py.read_pnml(str(path))
@@ -117,7 +118,8 @@ def test_pnml_of_problem_2_by_hand(tmp_path: Path) -> None:
 @pytest.mark.parametrize("violations", VIOLATIONS)
 @pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
 def test_networkx_is_bipartite_with_documented_attributes(spec_path: Path, violations: str) -> None:
-    rs = compile_spec(load_spec(spec_path), CompileOptions(violations=violations))
+    spec = load_spec(spec_path)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=violations))
     net = rs.net
     g = to_networkx(rs)
     assert isinstance(g, nx.DiGraph)
@@ -176,7 +178,7 @@ def test_cli_json_validates_against_the_schema(spec_path: Path, conjunction: str
     assert d["options"] == {"conjunction": conjunction, "violations": violations}
     assert (d["penalty"] > 0) == (violations != "off")
     spec = load_spec(spec_path)
-    rs = compile_spec(spec, CompileOptions(conjunction=conjunction, violations=violations))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
     assert d == json.loads(to_json(rs))
     check_consistent(d)
 

@@ -49,6 +49,7 @@ P5 = """
 plant pendulum(u_max = 10)
 init q in [-pi/2, pi/2], qdot = 0
 prop kappa = -pi < q < -pi + 0.5 or pi - 0.5 < q < pi
+option clock = trial
 formula 2 * !kappa U(1,2] (3 * kappa U(2,inf) G !kappa)
 """
 
@@ -56,7 +57,8 @@ SPECS = {"p1": P1, "p2": P2, "p3": P3, "p4": P4, "p5": P5}
 
 
 def runtime(text: str, conjunction: str = "literal") -> NetRuntime:
-    return NetRuntime(compile_spec(parse_spec(text), CompileOptions(conjunction=conjunction)))
+    spec = parse_spec(text)
+    return NetRuntime(compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction)))
 
 
 def states(qs, qdots=None) -> np.ndarray:

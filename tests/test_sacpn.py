@@ -37,6 +37,7 @@ plant pendulum(u_max = 10)
 init q in [-pi/2, pi/2], qdot = 0
 horizon 3
 prop kappa = -pi < q < -pi + 0.5 or pi - 0.5 < q < pi
+option clock = trial
 formula 2 * !kappa U(1,2] (3 * kappa U(2,inf) G !kappa)
 """
 

@@ -205,7 +205,7 @@ def test_plan_lists_every_configuration_and_seed_seed_major(short_spec):
     assert len({t.key for t in plan.tasks}) == 12
     p = plan.tasks[1].payload
     assert p["settings"]["sigma"] == 1.0 and p["weights"] == {"psi": 10.0}
-    assert p["options"] == {"conjunction": "literal", "violations": "off"}
+    assert p["options"] == {"conjunction": "literal", "violations": "off", "clock": "standard"}
 
 
 def test_task_key_depends_on_the_configuration_not_on_how_the_grid_is_written(short_spec):

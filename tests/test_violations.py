@@ -91,9 +91,8 @@ def test_deadlines_of_eventually_and_until() -> None:
 
 
 def test_timed_until_watches_its_phases() -> None:
-    rs = compile_spec(
-        load_spec(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl"), CompileOptions(violations="permanent")
-    )
+    spec = load_spec(ROOT / "specs" / "pendulum" / "p5_timed_visit.mitl")
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations="permanent"))
     watch = sorted(str(t.guard) for t in rs.net.transitions if rs.net.subnets[t.subnet].role == "violation")
     assert watch == ["!kappa & 1 < tau <= 2", "kappa & tau <= 1", "kappa & tau > 2"]
 
@@ -190,7 +189,7 @@ def test_no_violating_continuation_out_earns_a_satisfying_one(name, formula, q0,
     x = _traces(rng, q0, designed)
     verdict = monitor(spec, x, DT, parse_formula(formula) if formula else None).satisfied
     assert verdict.any() and (~verdict).any(), "the sample must hold both kinds of trial"
-    rs = compile_spec(spec, CompileOptions(violations="permanent"))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations="permanent"))
     rewards, first = _rewards_and_first_violation(rs, x)
     # the net records a violation exactly when the monitor finds one
     np.testing.assert_array_equal(first < STEPS, ~verdict)

@@ -55,6 +55,7 @@ two table look-ups.  The tables are built *from* the direct rule, and
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -62,6 +63,7 @@ import numpy as np
 
 from mitlc.petri.compile import RewardSystem
 from mitlc.petri.net import eval_state
+from mitlc.petri.timed import TimedState
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 
@@ -94,7 +96,13 @@ class NetRuntime:
     the spec's plant's ``state_names``.
     """
 
-    def __init__(self, rs: RewardSystem, state_names: Sequence[str] | None = None) -> None:
+    def __init__(
+        self,
+        rs: RewardSystem,
+        state_names: Sequence[str] | None = None,
+        dt: float | None = None,
+        steps: int | None = None,
+    ) -> None:
         self.rs = rs
         self.net = net = rs.net
         if state_names is None:
@@ -162,6 +170,27 @@ class NetRuntime:
         # their increments are tabulated per (code, next code) pair
         self.counters = np.array(net.counters, dtype=np.intp)
         self.tables = self._build_tables()
+
+        # timed obligation sub-nets (clock = standard with nested intervals): their tokens
+        # are moved by the obligation state (one TimedState per tree), not by the tables
+        self.timed = rs.timed
+        self._timed_states: list[TimedState] = []
+        self.dt: float | None = None
+        self.steps: int | None = None
+        if self.timed:
+            plant = rs.spec.plant
+            if dt is None and plant is not None:
+                dt = float(rs.spec.param("dt"))
+            if steps is None and dt is not None and rs.spec.horizon is not None:
+                steps = int(round(rs.spec.horizon / dt))
+            if dt is None or steps is None:
+                raise ValueError(
+                    "the net has timed obligations: give the spec a plant and a horizon, or pass dt and steps"
+                )
+            self.dt, self.steps = float(dt), int(steps)
+        self._timed_map = [
+            [(node, s, tn.local(node)) for node, s in tn.subnets] for tn in self.timed
+        ]  # per tree: (node, sub-net, engine code -> local place)
 
     # ------------------------------------------------------------ truth
     def truth(self, x: np.ndarray) -> dict[str, np.ndarray]:
@@ -244,6 +273,8 @@ class NetRuntime:
         out = np.zeros((len(self.net.transitions), n), dtype=bool)
         for t, tr in enumerate(self.net.transitions):
             for term in tr.guard.terms:
+                if term.event is not None:  # moved by the obligation state, not by the tables
+                    continue
                 ok = np.ones(n, dtype=bool)
                 if term.state is not None:
                     ok = ok & eval_state(term.state, truth)
@@ -273,6 +304,68 @@ class NetRuntime:
         clock_truth = [_clock_ok(c, tau) for c in self.clocks]
         return self._fire(M, self._guards(truth, clock_truth, n))
 
+    # ------------------------------------------------------------ timed obligations
+    def _timed_observe(self, x: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        """Feed sample ``x`` to every obligation tree: ``(sub-net, local place (R,))`` pairs."""
+        code = self.atom_code(x)
+        truth = {a: ((code >> i) & 1).astype(bool) for i, a in enumerate(self.atoms)}
+        out: list[tuple[int, np.ndarray]] = []
+        for state, mapping in zip(self._timed_states, self._timed_map, strict=True):
+            state.observe(truth)
+            where = state.places()
+            out.extend((s, local[where[node]]) for node, s, local in mapping)
+        return out
+
+    def _timed_reset(self, x0: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        assert self.dt is not None and self.steps is not None
+        n = np.shape(x0)[0]
+        self._timed_states = [TimedState(tn.tree, self.dt, n, self.steps) for tn in self.timed]
+        return self._timed_observe(x0)
+
+    def _timed_markings(self, M: np.ndarray, moves: list[tuple[int, np.ndarray]]) -> np.ndarray:
+        rows = np.arange(M.shape[0])
+        for s, local in moves:
+            places = self.subnet_places[s]
+            M[:, places] = 0
+            M[rows, places[local]] = 1
+        return M
+
+    def _timed_codes(self, code: np.ndarray, moves: list[tuple[int, np.ndarray]]) -> np.ndarray:
+        code = np.array(code, dtype=np.int64)
+        for s, local in moves:
+            old = (code // self._strides[s]) % self._sizes[s]
+            code += (local - old) * self._strides[s]
+        return code
+
+    def advance_code(self, code_next: np.ndarray, x_next: np.ndarray) -> np.ndarray:
+        """Move the timed obligation tokens of codes ``code_next`` for sample ``x_next``.
+
+        The tables keep those tokens where they are; a trainer that looks
+        ``next_code`` up itself calls this after every look-up (a no-op, returning
+        ``code_next``, when the net has no timed obligations).
+        """
+        if not self.timed:
+            return code_next
+        return self._timed_codes(code_next, self._timed_observe(np.asarray(x_next, dtype=float)))
+
+    def obligation_clocks(self) -> np.ndarray:
+        """Per run, the age of each timed node's oldest live obligation divided by its interval's
+        upper end (the trial length when unbounded), 0 where none lives: ``(R, timed nodes)``."""
+        cols = []
+        for state, tn in zip(self._timed_states, self.timed, strict=True):
+            ages = state.clocks()
+            for node, _ in tn.subnets:
+                iv = tn.tree.nodes[node].interval
+                scale = iv.hi if math.isfinite(iv.hi) and iv.hi > 0 else max(state.N * state.dt, state.dt)
+                cols.append(np.nan_to_num(ages[node] / scale, nan=0.0))
+        if not cols:
+            return np.zeros((0, 0))
+        return np.stack(cols, axis=1)
+
+    def verdicts(self) -> np.ndarray:
+        """Per run, each obligation tree's value so far (``timed.TRUE``, ``FALSE``, ``PENDING``), ``(R, trees)``."""
+        return np.stack([s.verdict() for s in self._timed_states], axis=1) if self._timed_states else np.zeros((0, 0))
+
     # ------------------------------------------------------------ public API
     def reset(self, x0: np.ndarray) -> np.ndarray:
         """Initial markings ``(R, P)``: timing places from ``net.M0``, state tokens on x0's region."""
@@ -294,12 +387,17 @@ class NetRuntime:
                 placed |= here
             new[~placed] = M[~placed][:, places]  # no region holds: keep M0 (cannot happen for region nets)
             M[:, places] = new
+        if self.timed:
+            M = self._timed_markings(M, self._timed_reset(x0))
         return M
 
     def step(self, M: np.ndarray, x_next: np.ndarray, tau_next: np.ndarray | float) -> np.ndarray:
         """``M_k+1`` from ``M_k`` ``(R, P)``, ``x_k+1`` ``(R, n)`` and ``tau_k+1`` (scalar or ``(R,)``)."""
         if self.tables is None:
-            return self.step_direct(M, x_next, tau_next)
+            M_next = self.step_direct(M, x_next, tau_next)
+            if self.timed:
+                M_next = self._timed_markings(M_next, self._timed_observe(np.asarray(x_next, dtype=float)))
+            return M_next
         M = self._check_marking(M)
         code = self.encode(M)
         code_next = self.step_code(code, np.asarray(x_next, dtype=float), tau_next)
@@ -321,8 +419,10 @@ class NetRuntime:
         """:meth:`step` on marking codes (needs the tables)."""
         tables = self.tables
         if tables is None:
-            return self.encode(self.step_direct(self.decode(code), x_next, tau_next))
-        return tables.next_code[self.clock_code(tau_next), code, self.atom_code(x_next)]
+            code_next = self.encode(self.step_direct(self.decode(code), x_next, tau_next))
+        else:
+            code_next = tables.next_code[self.clock_code(tau_next), code, self.atom_code(x_next)]
+        return self.advance_code(code_next, x_next)
 
     def trace_markings(self, codes: np.ndarray) -> np.ndarray:
         """Full markings ``(R, N+1, P)`` of code sequences ``(R, N+1)``, counters included.

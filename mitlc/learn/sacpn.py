@@ -215,7 +215,7 @@ class Sacpn:
         horizon = settings.trial_s if settings.trial_s is not None else (spec.horizon or 3.0)
         self.trial_s = float(horizon)
         self.n_steps = max(1, int(round(self.trial_s / self.dt)))
-        self.runtime = NetRuntime(rs, plant.state_names)
+        self.runtime = NetRuntime(rs, plant.state_names, dt=self.dt, steps=self.n_steps)
         if self.runtime.tables is None:
             raise TrainingError(
                 f"the net has too many markings for SACPN's transition tables ({len(rs.net.places)} places in "
@@ -377,6 +377,7 @@ class Sacpn:
         s_pen = self.penalty_scale(self.trial)
         reward_tab = reward_full if s_pen >= 1.0 else reward_full + ((1.0 - s_pen) * self.rs.penalty) * tables.charge
         atom_code, features, integrate, clock = rt.atom_code, self.features, self.integrate, self._clock
+        timed, advance = bool(rt.timed), rt.advance_code
         gamma, gl = st.gamma, st.gamma * st.lam
         a_c, a_a = st.alpha_c, st.alpha_a
         u_max = self.u_max
@@ -460,6 +461,8 @@ class Sacpn:
                 # the plant and the net move
                 integrate(x, a)
                 code1 = next_code[clock[k], code, atom_code(x)]
+                if timed:
+                    code1 = advance(code1, x)
                 r = reward_tab[code, code1]
                 ret += r if s_pen >= 1.0 else reward_full[code, code1]
                 features(x, out=phi_next)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,14 @@ from mitlc.petri.reading import (
     trigger,
 )
 from mitlc.petri.regions import region_net, state_groups
+from mitlc.petri.timed import (
+    NODE_PLACES,
+    ROOT_PLACES,
+    ObligationTree,
+    TimedNet,
+    earliest_witness,
+    needs_obligations,
+)
 from mitlc.petri.timeline import formula_thresholds, lower, timeline_net, upper
 from mitlc.petri.violations import (
     ViolationWatches,
@@ -76,9 +85,14 @@ class CompileOptions:
     it earns less than any violation-free step.  ``counted``: safety parts count
     their violations and each costs that once (docs/semantics.md, section 6)."""
 
+    clock: str = "standard"
+    """``standard``: a nested interval is measured from the moment its enclosing
+    obligation starts (MITL; timed obligation sub-nets, :mod:`mitlc.petri.timed`).
+    ``trial``: every interval on the trial clock, the thesis's reading (net C-5)."""
+
     @staticmethod
     def from_spec(spec: Spec, **overrides: str | None) -> CompileOptions:
-        values = {"conjunction": spec.option("conjunction"), "violations": spec.option("violations")}
+        values = {name: spec.option(name) for name in ("conjunction", "violations", "clock")}
         values.update({k: v for k, v in overrides.items() if v is not None})
         return CompileOptions(**values)
 
@@ -99,6 +113,10 @@ class RewardSystem:
     charge: R.RExpr | None = None
     """What ``c`` multiplies (``reward = base - c * charge``): ``v`` (0/1) with ``permanent``,
     the number of new violations with ``counted``; ``None`` with ``off``."""
+    timed: tuple[TimedNet, ...] = ()
+    """The timed obligation trees (``clock = standard`` with nested intervals) and their sub-nets."""
+    warnings: tuple[str, ...] = ()
+    """What the compiler noticed (a part that no trial of the horizon can satisfy)."""
 
     @property
     def atoms(self) -> tuple[str, ...]:
@@ -111,8 +129,12 @@ class RewardSystem:
 class _Builder(ViolationWatches):
     """Builds the sub-nets of a formula and its reward, one method per operator (Table 4-2)."""
 
-    def __init__(self, spec: Spec, options: CompileOptions, formula: A.Formula) -> None:
+    def __init__(
+        self, spec: Spec, options: CompileOptions, formula: A.Formula, roots: Sequence[A.Formula] = ()
+    ) -> None:
         self.spec = spec
+        self.roots = {id(r) for r in roots}  # obligation trees: compiled by _obligation
+        self.obligations: list[tuple[ObligationTree, list[tuple[int, Part]]]] = []
         self.options = options
         self.timing: list[Part] = []
         self.violation_nets: list[Part] = []
@@ -133,7 +155,7 @@ class _Builder(ViolationWatches):
             for a in g:
                 pos = [f"p_{a}"]
                 self.where[a] = (pos, [n for n in all_names if n not in pos])
-        self.thresholds = formula_thresholds(formula)
+        self.thresholds = formula_thresholds(_masked(formula, self.roots))
         self.segments: list[str] = []
         if self.thresholds:
             line = timeline_net(self.thresholds, self._unique)
@@ -196,6 +218,8 @@ class _Builder(ViolationWatches):
         the root through ``&``, weights and timeline phases only), so its
         violations may be tracked.
         """
+        if id(f) in self.roots:
+            return self._obligation(f, ctx, conj)
         if isinstance(f, A.Const):
             return R.Const(1.0 if f.value else -1.0)
         if isinstance(f, A.Atom):
@@ -366,6 +390,85 @@ class _Builder(ViolationWatches):
             )
         )
 
+    def _obligation(self, f: A.Formula, ctx: frozenset[int], conj: bool) -> R.RExpr:
+        """A temporal part with nested intervals: one timed sub-net per temporal node (standard MITL)."""
+        tree, index = ObligationTree.build_indexed(f)
+        names: dict[int, dict[str, str]] = {}
+        parts: list[tuple[int, Part]] = []
+        for i in tree.temporal:
+            node = tree.nodes[i]
+            root = i == tree.root
+            self.counter += 1
+            label = f"{node.op}{self.counter}"
+            roles = ROOT_PLACES if root else NODE_PLACES
+            names[i] = {role: self._unique(f"p_{role}_{label}") for role in roles}
+            places = [(names[i][role], f"{label},{role}") for role in roles]
+            age = node.interval
+
+            def ev(text: str, in_window: bool = False, age: A.Interval = age) -> Guard:
+                return Guard((GuardTerm(age=age if in_window else None, event=text),))
+
+            if root:
+                arcs: list[Arc] = [
+                    (0, 1, ev("next sample outside its interval")),
+                    (1, 0, ev("next sample in its interval", True)),
+                    (0, 2, ev("met")),
+                    (0, 3, ev("failed")),
+                    (1, 2, ev("met")),
+                    (1, 3, ev("failed")),
+                ]
+            else:
+                arcs = [
+                    (0, 1, ev("an obligation starts, next sample in its interval", True)),
+                    (0, 2, ev("an obligation starts before its interval")),
+                    (1, 2, ev("no obligation's next sample in its interval")),
+                    (2, 1, ev("an obligation's next sample in its interval", True)),
+                    (1, 0, ev("every obligation decided")),
+                    (2, 0, ev("every obligation decided")),
+                ]
+            part = Part(f"obligation {label}", "timing", "obligation", places, arcs, 0, str(node.formula))
+            self.timing.append(part)
+            parts.append((i, part))
+        self.obligations.append((tree, parts))
+        if conj and self.options.violations != "off":
+            self.penalties.append(names[tree.root]["failed"])
+        active = self.options.conjunction == "active"
+
+        def gate(i: int, role: str, expr: R.RExpr) -> R.RExpr:
+            return R.Gated(tokens([names[i][role]], prev=True), expr)
+
+        def rew(g: A.Formula) -> R.RExpr:
+            w, core = peel_weights(g)
+            if w != 1.0:
+                inner = rew(core)
+                if isinstance(inner, R.Gated):
+                    return R.Gated(inner.gate, R.scale(w, inner.expr))
+                return R.scale(w, inner)
+            i = index[id(core)]
+            node = tree.nodes[i]
+            if node.op == "state":
+                return self.reward(core, ctx, True)
+            if node.op in ("and", "or"):
+                terms = (rew(core.left), rew(core.right))  # type: ignore[attr-defined]
+                return R.Min(terms, active=active) if node.op == "and" else R.Max(terms)
+            if isinstance(core, A.Eventually):
+                if is_state_formula(core.child):
+                    return gate(i, "open", self.reward(core.child, ctx, True))
+                return rew(core.child)
+            if isinstance(core, A.Globally):
+                if is_state_formula(core.child):
+                    return gate(i, "open", self._bonus(core.child, ctx, True))
+                return rew(core.child)
+            if isinstance(core, A.Until):
+                return R.Sum((gate(i, "wait", rew(core.left)), gate(i, "open", rew(core.right))))
+            if isinstance(core, A.Release):
+                if is_state_formula(core.right):
+                    return gate(i, "open", self._bonus(core.right, ctx, True))
+                return rew(core.right)
+            raise CompileError(f"cannot compile {type(core).__name__} in a timed obligation")
+
+        return rew(f)
+
     def _gated_within(self, e: R.RExpr, phase: frozenset[int]) -> bool:
         names = {self.segments[i] for i in phase}
         terms = e.terms if isinstance(e, R.Sum) else (e,)
@@ -449,6 +552,54 @@ class _Builder(ViolationWatches):
         return net, _resolve(reward, index)
 
 
+def _masked(f: A.Formula, roots: set[int]) -> A.Formula:
+    """``f`` with the obligation trees replaced by ``true`` (they have clocks of their own)."""
+    if id(f) in roots:
+        return A.Const(True)
+    if isinstance(f, (A.And, A.Or)):
+        return f.__class__(_masked(f.left, roots), _masked(f.right, roots))
+    if isinstance(f, A.Weighted):
+        return A.Weighted(f.weight, _masked(f.child, roots))
+    if isinstance(f, A.Until):
+        return A.Until(_masked(f.left, roots), _masked(f.right, roots), f.interval)
+    if isinstance(f, (A.Eventually, A.Globally)):
+        return f.__class__(_masked(f.child, roots), f.interval)
+    return f
+
+
+def _split_reading(f: A.Formula, standard: bool, roots: list[A.Formula]) -> A.Formula:
+    """:func:`reward_reading` of ``f``, leaving the temporal parts with nested intervals as they
+    are (collected in ``roots``) when ``standard``: their timed sub-nets track release exactly."""
+    if isinstance(f, (A.Eventually, A.Globally, A.Until, A.Release)):
+        if standard and needs_obligations(f):
+            roots.append(f)
+            return f
+        return reward_reading(f)
+    if isinstance(f, (A.And, A.Or)):
+        return f.__class__(_split_reading(f.left, standard, roots), _split_reading(f.right, standard, roots), pos=f.pos)
+    if isinstance(f, A.Weighted):
+        return A.Weighted(f.weight, _split_reading(f.child, standard, roots), pos=f.pos)
+    return f
+
+
+def _unsatisfiable(spec: Spec, nf: A.Formula) -> list[str]:
+    """Warnings for the conjuncts of ``nf`` that no trial of the spec's horizon can satisfy."""
+    if spec.horizon is None or spec.plant is None:
+        return []
+    dt, steps = spec.param("dt"), _steps(spec)
+    out = []
+    for part in flatten(strip_weights(nf), A.And):
+        first = earliest_witness(part, dt)
+        if first > steps * dt * (1 + 1e-12):
+            when = "never" if math.isinf(first) else f"not before t = {A.fmt_number(round(first, 9))} s"
+            out.append(
+                f"{spec.path or '<spec>'}: warning: '{part}' cannot be satisfied within the horizon "
+                f"{A.fmt_number(spec.horizon)} s (its earliest witness: {when}); "
+                "every trial violates it (option clock = trial reads intervals on the trial clock)"
+            )
+    return out
+
+
 def _resolve(e: R.RExpr, index: dict[str, int]) -> R.RExpr:
     if isinstance(e, R.Tokens):
         return R.Tokens(tuple(index[n] for n in e.names), e.names, e.prev)
@@ -480,9 +631,13 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
             f"--violations {options.violations} needs the trial length: give the spec a 'horizon' and a 'plant'",
             file=spec.path,
         )
+    if options.clock not in OPTIONS["clock"]:
+        raise CompileError(f"unknown clock reading '{options.clock}' (standard or trial)")
     nf = normal_form(spec.formula)
-    formula = reward_reading(nf)
-    builder = _Builder(spec, options, formula)
+    roots: list[A.Formula] = []
+    formula = _split_reading(nf, options.clock == "standard", roots)
+    warnings = _unsatisfiable(spec, nf) if options.clock == "standard" else []
+    builder = _Builder(spec, options, formula, roots)
     everything = builder._all() if builder.segments else frozenset()
     reward = builder.reward(formula, everything, under_g=False, conj=True)
     penalty = 0.0
@@ -507,7 +662,12 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
         charge = _resolve(charge, index)
     else:
         charge = None
-    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, charge)
+    subs = builder.timing + builder.state + builder.violation_nets
+    timed = tuple(
+        TimedNet(tree, tuple((i, next(k for k, s in enumerate(subs) if s is part)) for i, part in parts))
+        for tree, parts in builder.obligations
+    )
+    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, charge, timed, tuple(warnings))
 
 
 def _steps(spec: Spec) -> int:

@@ -76,19 +76,32 @@ def eval_state(f: A.Formula, truth: Mapping[str, np.ndarray]) -> np.ndarray:
 
 @dataclass(frozen=True, slots=True)
 class GuardTerm:
-    """``state & tau in clock``; a missing part is true."""
+    """``state & tau in clock``; a missing part is true.
+
+    A term with an ``event`` belongs to a timed obligation sub-net
+    (:mod:`mitlc.petri.timed`): it says in words what moves the token there (an
+    obligation's age entering or leaving ``age``, its value being decided), the
+    runtime's obligation state fires it, and it is never true on the state and
+    the trial clock alone.
+    """
 
     state: A.Formula | None = None
     clock: A.Interval | None = None
+    age: A.Interval | None = None
+    event: str | None = None
 
     def __str__(self) -> str:
         parts = []
+        if self.event is not None:
+            age = clock_text(self.age).replace("tau", "age") if self.age is not None else "true"
+            parts.append(self.event if age == "true" else f"{self.event} ({age})")
         if self.state is not None:
             parts.append(str(self.state))
         if self.clock is not None:
             parts.append(clock_text(self.clock))
-        if len(parts) == 2 and self.state is not None and self.state.prec < 5:
-            parts[0] = f"({parts[0]})"
+        if len(parts) >= 2 and self.state is not None and self.state.prec < 5:
+            i = parts.index(str(self.state))
+            parts[i] = f"({parts[i]})"
         return " & ".join(parts) or "true"
 
 
@@ -107,6 +120,11 @@ class Guard:
         return Guard((GuardTerm(clock=interval),))
 
     @property
+    def is_event(self) -> bool:
+        """Fired by a timed obligation's state, not by the state and the clock (:class:`GuardTerm`)."""
+        return any(t.event is not None for t in self.terms)
+
+    @property
     def is_timed(self) -> bool:
         return any(t.clock is not None for t in self.terms)
 
@@ -119,6 +137,8 @@ class Guard:
         tau = np.asarray(tau, dtype=float)
         out = np.zeros(np.shape(tau), dtype=bool)
         for term in self.terms:
+            if term.event is not None:
+                continue
             ok = np.ones(np.shape(tau), dtype=bool)
             if term.state is not None:
                 ok = ok & eval_state(term.state, truth)

@@ -60,6 +60,9 @@ __all__ = [
     "MET",
     "FAILED",
     "needs_obligations",
+    "TimedNet",
+    "ROOT_PLACES",
+    "NODE_PLACES",
     "earliest_witness",
 ]
 
@@ -118,16 +121,27 @@ class ObligationTree:
 
     @staticmethod
     def build(formula: A.Formula) -> ObligationTree:
-        """The tree of ``formula`` (in normal form; weights are dropped: they do not change truth).
+        return ObligationTree.build_indexed(formula)[0]
+
+    @staticmethod
+    def build_indexed(formula: A.Formula) -> tuple[ObligationTree, dict[int, int]]:
+        """The tree of ``formula`` (in normal form; weights are dropped: they do not change truth),
+        and the node index of every visited subformula object (by ``id``, weights peeled).
 
         >>> from mitlc.spec.parse import parse_formula
-        >>> t = ObligationTree.build(parse_formula("F[0,2] G goal"))
+        >>> t, _ = ObligationTree.build_indexed(parse_formula("F[0,2] G goal"))
         >>> [(n.op, n.children) for n in t.nodes]
         [('state', ()), ('G', (0,)), ('F', (1,))]
         """
         nodes: list[TNode] = []
+        index: dict[int, int] = {}
 
         def visit(f: A.Formula) -> int:
+            i = add(f)
+            index[id(_strip(f))] = i
+            return i
+
+        def add(f: A.Formula) -> int:
             f = _strip(f)
             if is_state_formula(f):
                 nodes.append(TNode("state", (), f))
@@ -145,7 +159,7 @@ class ObligationTree:
             return len(nodes) - 1
 
         visit(formula)
-        return ObligationTree(tuple(nodes))
+        return ObligationTree(tuple(nodes)), index
 
 
 def _temporal_nodes(f: A.Formula) -> bool:
@@ -200,6 +214,25 @@ def earliest_witness(f: A.Formula, dt: float) -> float:
         right = f.child if isinstance(f, A.Eventually) else f.right
         return lo * dt + earliest_witness(right, dt)
     return 0.0
+
+
+@dataclass(frozen=True)
+class TimedNet:
+    """An obligation tree inside a compiled net: which sub-net shows each temporal node."""
+
+    tree: ObligationTree
+    subnets: tuple[tuple[int, int], ...]
+    """``(tree node, net sub-net)`` for every temporal node."""
+
+    def local(self, node: int) -> np.ndarray:
+        """Engine place code (``IDLE .. FAILED``) -> local place index in the node's sub-net."""
+        return ROOT_LOCAL if node == self.tree.root else NODE_LOCAL
+
+
+ROOT_PLACES = ("open", "wait", "met", "failed")
+NODE_PLACES = ("idle", "open", "wait")
+ROOT_LOCAL = np.array([-1, 0, 1, 2, 3], dtype=np.int64)
+NODE_LOCAL = np.array([0, 1, 2, -1, -1], dtype=np.int64)
 
 
 # ----------------------------------------------------------------- the engine

@@ -38,6 +38,7 @@ CRITERIA: dict[str, str] = {
 OPTIONS: dict[str, tuple[str, ...]] = {
     "conjunction": ("literal", "active"),
     "violations": ("off", "permanent", "counted"),
+    "clock": ("standard", "trial"),
 }
 """Spec options (``option NAME = VALUE``) and their allowed values; the first is the default."""
 
