@@ -38,8 +38,17 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
     default=None,
     help="Track violations of safety and deadline parts (overrides the spec's option).",
 )
+@click.option(
+    "--clock",
+    type=click.Choice(OPTIONS["clock"]),
+    default=None,
+    help="standard: nested intervals count from their obligation's start (MITL); trial: every "
+    "interval on the trial clock, the thesis's reading (overrides the spec's option).",
+)
 @handle_errors
-def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None, violations: str | None) -> None:
+def compile_cmd(
+    spec: str, fmt: str, output: str | None, conjunction: str | None, violations: str | None, clock: str | None
+) -> None:
     """Compile SPEC (.mitl) into a reward Petri net and reward expression."""
     from mitlc.petri import export
     from mitlc.petri.compile import CompileOptions, compile_spec
@@ -48,7 +57,9 @@ def compile_cmd(spec: str, fmt: str, output: str | None, conjunction: str | None
     s = load_spec(spec)
     for w in s.warnings:
         click.echo(w, err=True)
-    rs = compile_spec(s, CompileOptions.from_spec(s, conjunction=conjunction, violations=violations))
+    rs = compile_spec(s, CompileOptions.from_spec(s, conjunction=conjunction, violations=violations, clock=clock))
+    for w in rs.warnings:
+        click.echo(w, err=True)
     from mitlc.petri.render import render_bytes, to_digraph
 
     makers: dict[str, Callable[[], str | bytes]] = {

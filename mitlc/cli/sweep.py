@@ -19,6 +19,7 @@ import click
 
 from mitlc.cli.common import atomic_write, handle_errors
 from mitlc.errors import InputError
+from mitlc.spec.model import OPTIONS
 
 __all__ = ["sweep"]
 
@@ -110,12 +111,31 @@ def _list(spec) -> str:
     default=None,
     help="Output directory (default runs/sweep_<spec name>); re-running skips the tasks done there.",
 )
+@click.option(
+    "--clock",
+    type=click.Choice(OPTIONS["clock"]),
+    default=None,
+    help="standard or trial reading of nested intervals for every task (the same as --grid option.clock=VALUE).",
+)
 @click.option("--list", "list_only", is_flag=True, help="Print every grid name with its current value and exit.")
 @click.option("--no-plot", is_flag=True, help="Skip sweep.png.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @handle_errors
 def sweep(
-    spec_path, grid, seeds, runs, trials, backend, address, workers, max_retries, out_dir, list_only, no_plot, quiet
+    spec_path,
+    grid,
+    seeds,
+    runs,
+    trials,
+    backend,
+    address,
+    workers,
+    max_retries,
+    out_dir,
+    clock,
+    list_only,
+    no_plot,
+    quiet,
 ) -> None:
     """Train SPEC over a grid of trainer settings, weights and options, several seeds each."""
     from tqdm import tqdm
@@ -135,6 +155,8 @@ def sweep(
     spec = load_spec(spec_path)
     for w in spec.warnings:
         click.echo(w, err=True)
+    if clock is not None:
+        grid = (*grid, f"option.clock={clock}")
     if list_only:
         click.echo(_list(spec))
         return

@@ -136,6 +136,7 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
         "check": str(spec.monitor_formula),
         "conjunction": agent.rs.options.conjunction,
         "violations": agent.rs.options.violations,
+        "clock": agent.rs.options.clock,
         "runs": agent.runs,
         "trials": agent.trial,
         "seed": agent.seed,
@@ -214,6 +215,13 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
     help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).",
 )
 @click.option(
+    "--clock",
+    type=click.Choice(OPTIONS["clock"]),
+    default=None,
+    help="standard: nested intervals count from their obligation's start (MITL); trial: the "
+    "thesis's trial clock (overrides the spec's option).",
+)
+@click.option(
     "--penalty-ramp",
     type=click.FloatRange(0, 1),
     default=None,
@@ -256,6 +264,7 @@ def train(
     resume_dir,
     conjunction,
     violations,
+    clock,
     penalty_ramp,
     sigma,
     mask,
@@ -281,6 +290,7 @@ def train(
         runs, seed = int(meta["runs"]), int(meta["seed"])
         conjunction = conjunction or meta.get("conjunction")
         violations = violations or meta.get("violations")
+        clock = clock or meta.get("clock")
         base = SacpnSettings.from_dict(meta["settings"])
         out = Path(out_dir or resume_dir)
     else:
@@ -320,7 +330,9 @@ def train(
         assignments,
         {"sigma": sigma, "mask": mask, "saturation": saturation, "penalty_ramp": penalty_ramp},
     )
-    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations, clock=clock))
+    for w in rs.warnings:
+        click.echo(w, err=True)
     agent = Sacpn(rs, settings, runs=runs, seed=seed)
     wall_before = 0.0
     if meta is not None:
@@ -431,7 +443,10 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
         raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy", file="--policy")
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
     rs = compile_spec(
-        spec, CompileOptions.from_spec(spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"))
+        spec,
+        CompileOptions.from_spec(
+            spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"), clock=meta.get("clock")
+        ),
     )
     agent = Sacpn(rs, SacpnSettings.from_dict(meta["settings"]), runs=int(meta["runs"]), seed=int(meta["seed"]))
     agent.load(ckpt)

@@ -567,6 +567,7 @@ class Sacpn:
             "spec_path": self.spec.path or "",
             "conjunction": self.rs.options.conjunction,
             "violations": self.rs.options.violations,
+            "clock": self.rs.options.clock,
         }
         return {
             "xi": self.xi,
