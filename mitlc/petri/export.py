@@ -15,6 +15,7 @@ All functions are pure: they return strings or objects and write nothing.
 from __future__ import annotations
 
 import json
+import math
 import xml.etree.ElementTree as ET
 from typing import Any
 
@@ -22,6 +23,7 @@ import networkx as nx
 
 from mitlc.petri import reward as R
 from mitlc.petri.compile import RewardSystem
+from mitlc.spec import ast as A
 
 __all__ = ["to_dict", "to_json", "to_text", "to_pnml", "to_networkx", "reward_tree", "PNML_NS", "PTNET_TYPE"]
 
@@ -52,7 +54,11 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
         "spec": rs.spec.path,
         "formula": str(rs.spec.formula),
         "normal_form": str(rs.normal_form),
-        "options": {"conjunction": rs.options.conjunction, "violations": rs.options.violations},
+        "options": {
+            "conjunction": rs.options.conjunction,
+            "violations": rs.options.violations,
+            "clock": rs.options.clock,
+        },
         "penalty": rs.penalty,
         "places": [{"name": p.name, "kind": p.kind, "subnet": p.subnet, "label": p.label} for p in net.places],
         "transitions": [
@@ -62,6 +68,8 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
                 "inputs": list(t.inputs),
                 "outputs": list(t.outputs),
                 "subnet": t.subnet,
+                "age": next((_interval_text(g.age) for g in t.guard.terms if g.age is not None), None),
+                "event": next((g.event for g in t.guard.terms if g.event is not None), None),
             }
             for t in net.transitions
         ],
@@ -83,7 +91,29 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
         "M0": net.M0.tolist(),
         "reward": str(rs.reward),
         "reward_tree": reward_tree(rs.reward),
+        "obligations": [
+            {
+                "formula": str(tn.tree.formula),
+                "nodes": [
+                    {
+                        "op": n.op,
+                        "children": list(n.children),
+                        "formula": str(n.formula),
+                        "interval": _interval_text(n.interval) if n.temporal else None,
+                        "subnet": dict(tn.subnets).get(i),
+                    }
+                    for i, n in enumerate(tn.tree.nodes)
+                ],
+            }
+            for tn in rs.timed
+        ],
     }
+
+
+def _interval_text(i: A.Interval) -> str:
+    lo = "[" if i.lo_closed else "("
+    hi = ")" if math.isinf(i.hi) or not i.hi_closed else "]"
+    return f"{lo}{A.fmt_number(i.lo)},{'inf' if math.isinf(i.hi) else A.fmt_number(i.hi)}{hi}"
 
 
 def to_json(rs: RewardSystem) -> str:
