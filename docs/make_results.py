@@ -328,8 +328,9 @@ def write_doc(rows, comparisons, total: float) -> None:
     ]
     page = ROOT / "docs" / "results.md"
     old = page.read_text(encoding="utf-8") if page.is_file() else ""
-    # the sections other scripts write: docs/make_hyrl_results.py, docs/make_violation_results.py
-    for name in ("hyrl", "violations"):
+    # the sections other scripts write: docs/make_hyrl_results.py, docs/make_violation_results.py,
+    # docs/make_nested_results.py
+    for name in ("hyrl", "violations", "nested"):
         begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
         if begin in old and end in old:
             lines += [old[old.index(begin) : old.index(end) + len(end)], ""]

@@ -18,7 +18,11 @@ observation        ``{"obs": obs, "marking": M_k}`` (``Dict`` of the env's space
                    ``MultiBinary(places)``), or with ``marking_obs="box"`` one flat
                    ``Box``: the flattened observation followed by the marking.  A net
                    that counts (``violations = counted``) has an unbounded ``Box``
-                   entry per counter instead of ``MultiBinary``
+                   entry per counter instead of ``MultiBinary``.  A formula with
+                   nested intervals adds ``"clocks"`` (after the marking in the
+                   ``Box``): the live obligations' ages over their bounds
+                   (:attr:`MitlRewardWrapper.clocks`), so that state, marking and
+                   clocks together make the reward Markov
 ``info``           ``marking`` (``M_k``, int8, in ``net.place_names`` order), ``tau``
                    (``k * dt``), ``env_reward``, and ``verdict``: the monitor's verdict
                    on ``x_0 .. x_k`` (when :mod:`mitlc.monitor` is available)
@@ -197,7 +201,6 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.reward_system = rs = _reward_system(spec)
         self.mitl_spec: Spec = rs.spec
         self.state_names, self._needed = _state_names(self.mitl_spec)
-        self.runtime = NetRuntime(rs, self.state_names)
         self.place_names: tuple[str, ...] = rs.net.place_names
         n_places = len(self.place_names)
 
@@ -211,21 +214,35 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.token_bounds = _token_bounds(rs)
         binary = bool(np.all(self.token_bounds == 1))
         self._marking_dtype = np.int8 if binary else np.int64
+        # the live obligations' clocks (nested intervals): age of each timed node's oldest live
+        # obligation over its interval's upper end (the horizon when unbounded), 0 when none lives
+        self.n_clocks = sum(len(tn.subnets) for tn in rs.timed)
+        clock_high = np.full(self.n_clocks, np.inf, np.float32)
+        if rs.timed and self.mitl_spec.horizon is not None:
+            h = float(self.mitl_spec.horizon)
+            his = [tn.tree.nodes[node].interval.hi for tn in rs.timed for node, _ in tn.subnets]
+            clock_high[:] = [h / hi if math.isfinite(hi) and hi > 0 else 1.0 for hi in his]
+        self._clock_high = clock_high
         if marking_obs == "dict":
             marking_space = (
                 spaces.MultiBinary(n_places)
                 if binary
                 else spaces.Box(np.zeros(n_places, np.float32), self.token_bounds.astype(np.float32), dtype=np.float32)
             )
-            self.observation_space = spaces.Dict({"obs": base, "marking": marking_space})
+            entries: dict[str, spaces.Space] = {"obs": base, "marking": marking_space}
+            if self.n_clocks:
+                entries["clocks"] = spaces.Box(np.zeros(self.n_clocks, np.float32), clock_high, dtype=np.float32)
+            self.observation_space = spaces.Dict(entries)
         else:
             flat = spaces.flatten_space(base)
             if not isinstance(flat, spaces.Box):
                 raise InputError(f"marking_obs='box' needs an observation space that flattens to a Box, got {base}")
             dtype = np.result_type(flat.dtype, np.float32)
             self.observation_space = spaces.Box(
-                low=np.concatenate([flat.low.astype(dtype), np.zeros(n_places, dtype)]),
-                high=np.concatenate([flat.high.astype(dtype), self.token_bounds.astype(dtype)]),
+                low=np.concatenate([flat.low.astype(dtype), np.zeros(n_places + self.n_clocks, dtype)]),
+                high=np.concatenate(
+                    [flat.high.astype(dtype), self.token_bounds.astype(dtype), clock_high.astype(dtype)]
+                ),
                 dtype=dtype,
             )
 
@@ -239,6 +256,16 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         else:
             where = "dt"
         self.dt = _positive_dt(dt, where)
+        steps = None
+        if rs.timed:
+            if self.mitl_spec.horizon is None:
+                raise InputError(
+                    "the formula has timed obligations (nested intervals), which need the trial length: "
+                    "give the spec a 'horizon'",
+                    file=self.mitl_spec.path,
+                )
+            steps = int(round(self.mitl_spec.horizon / self.dt))
+        self.runtime = NetRuntime(rs, self.state_names, dt=self.dt, steps=steps)
         self.horizon = self.mitl_spec.horizon if truncate_at_horizon else None
         if truncate_at_horizon and self.horizon is None:
             raise InputError("truncate_at_horizon=True but the spec has no horizon")
@@ -366,6 +393,12 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self._k >= self._trace.shape[0]:
             self._trace = np.concatenate([self._trace, np.zeros_like(self._trace)])
         self._trace[self._k] = x
+        if self.runtime.steps is not None and self._k > self.runtime.steps:
+            raise InputError(
+                f"the episode ran past the spec's horizon ({self.mitl_spec.horizon} s): the timed obligations "
+                "end there; use truncate_at_horizon=True or a longer horizon",
+                file=self.mitl_spec.path,
+            )
         M_next = self.runtime.step(self._M, x[None, :], self._k * self.dt)
         reward = float(self.runtime.reward(self._M, M_next)[0])
         self._M = M_next
@@ -409,15 +442,27 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             "failing": res.failing[0],
         }
 
+    @property
+    def clocks(self) -> np.ndarray:
+        """The live obligations' clocks ``(timed nodes,)``: for each timed obligation sub-net (in net
+        order), the age of its oldest live obligation divided by its interval's upper end (by the
+        horizon when unbounded), 0 when none lives. Empty without nested intervals."""
+        if not self.n_clocks:
+            return np.zeros(0, np.float32)
+        return np.minimum(self.runtime.obligation_clocks()[0], self._clock_high).astype(np.float32)
+
     def _observation(self, obs: Any) -> Any:
         marking = self.marking
         if self.marking_obs == "dict":
             if self._marking_dtype != np.int8:
                 marking = marking.astype(np.float32)
-            return {"obs": obs, "marking": marking}
+            out = {"obs": obs, "marking": marking}
+            if self.n_clocks:
+                out["clocks"] = self.clocks
+            return out
         space = self.observation_space
         flat = np.asarray(spaces.flatten(self.env.observation_space, obs), dtype=space.dtype).reshape(-1)
-        return np.concatenate([flat, marking.astype(space.dtype)])
+        return np.concatenate([flat, marking.astype(space.dtype), self.clocks.astype(space.dtype)])
 
 
 def _token_bounds(rs: RewardSystem) -> np.ndarray:

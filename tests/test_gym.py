@@ -133,7 +133,7 @@ def test_every_thesis_spec_rewards_as_the_runtime(spec_path: Path, violations: s
     _, observations, rewards, infos, ends = random_rollout(env, seed=6, steps=60)
     assert ends[-1] == (False, True)
     x = np.array([env.state(o["obs"]) for o in observations])
-    rt = NetRuntime(rs)
+    rt = NetRuntime(rs, dt=env.dt, steps=env.runtime.steps)  # the wrapper's clock: Pendulum-v1's dt
     M = rt.reset(x[:1])
     for k in range(1, 61):
         M_next = rt.step(M, x[k : k + 1], k * PENDULUM_DT)
@@ -317,3 +317,31 @@ def test_without_gymnasium_the_import_error_says_what_to_install() -> None:
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert r.returncode == 1
     assert "ImportError: mitlc.gym needs Gymnasium, an optional dependency: pip install 'mitlc[gym]'" in r.stderr
+
+
+def test_nested_spec_observation_carries_the_obligation_clocks() -> None:
+    """A bounded response: the response obligation's age over 0.5 s rides beside the marking."""
+    from gymnasium.utils.env_checker import check_env
+
+    spec = SPECS / "n3_bounded_response.mitl"
+    env = MitlRewardWrapper(gym.make("Pendulum-v1"), spec, pendulum_v1_state, verdict="off", truncate_at_horizon=True)
+    assert env.observation_space["clocks"].shape == (2,)  # the F[0,0.5] node and the G root
+    obs, _ = env.reset(seed=0)
+    assert set(obs) == {"obs", "marking", "clocks"}
+    open_f = env.place_names.index("p_open_F1")  # the response F[0,0.5] !fast
+    ages, opened = [], []
+    for _ in range(40):  # full torque one way: the pendulum spins up past |qdot| = 3
+        obs, *_ = env.step(np.array([2.0], np.float32))
+        ages.append(float(obs["clocks"][0]))
+        opened.append(bool(obs["marking"][open_f]))
+        assert env.observation_space.contains(obs)
+    ages_a = np.array(ages)
+    assert np.any(ages_a > 0) and any(opened)
+    # while one response obligation lives its clock grows by dt / 0.5 a step
+    grow = np.diff(ages_a)[(ages_a[:-1] > 0) & (ages_a[1:] > ages_a[:-1])]
+    np.testing.assert_allclose(grow, env.dt / 0.5, rtol=1e-6)
+    assert env.runtime.obligation_clocks().shape == (1, 2)
+    check_env(env, skip_render_check=True)
+    box = MitlRewardWrapper(gym.make("Pendulum-v1"), spec, pendulum_v1_state, marking_obs="box", verdict="off")
+    o, _ = box.reset(seed=1)
+    assert o.shape == (3 + len(box.place_names) + 2,)
