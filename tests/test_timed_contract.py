@@ -142,3 +142,58 @@ def test_reach_and_stay_in_time_by_hand() -> None:
     assert [int(p[G][0]) for p in places[:5]] == [1, 1, 1, 1, 1]  # open: the next sample keeps it
     assert [int(p[tree.root][1]) for p in places] == [1, 1, 4, 4, 4, 4]  # failed once 2 s pass without g
     assert [int(p[tree.root][0]) for p in places] == [1, 1, 2, 2, 2, MET]  # open, then waits on G, met at the end
+
+
+# ------------------------------------------------------------------ through the compiler and the runtime
+
+DT, STEPS = 0.5, 10
+PENDULUM = f"plant pendulum(dt = {DT})\nhorizon {STEPS * DT}\nprop a = q > 0\nprop b = qdot > 0\n"
+
+
+def _has_timed_part(f: A.Formula) -> bool:
+    from mitlc.petri.timed import needs_obligations
+
+    temporal = (A.Eventually, A.Globally, A.Until, A.Release)
+    return any(isinstance(n, temporal) and needs_obligations(n) for n in A.walk(normal_form(f)))
+
+
+timed_roots = (
+    strategies.formulas(atoms=("a", "b"), interval=strategies.grid_intervals(step=0.5, max_end=6), max_leaves=6)
+    .filter(lambda f: A.depth(f) <= 4)
+    .filter(_has_timed_part)
+)
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(timed_roots, st.lists(st.integers(0, 3), min_size=STEPS + 1, max_size=STEPS + 1))
+def test_compiled_timed_parts_end_where_the_monitor_does(f: A.Formula, codes: list[int]) -> None:
+    """Every timed part of a compiled random formula (a conjunct reached through & and weights) ends in
+    met exactly when the monitor says it holds, with --violations permanent charging its failure."""
+    from mitlc.learn.runtime import NetRuntime
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.petri.reading import flatten, strip_weights
+
+    spec = parse_spec(PENDULUM + f"formula {f}\n")
+    rs = compile_spec(spec, CompileOptions(violations="permanent"))
+    assert rs.timed
+    bits = np.array(codes)
+    x = np.stack([np.where(bits & 1, 1.0, -1.0), np.where(bits & 2, 1.0, -1.0)], axis=1)[None]  # (1, N+1, 2)
+    rt = NetRuntime(rs)
+    M = rt.reset(x[:, 0])
+    rewards = []
+    for k in range(STEPS):
+        M1 = rt.step(M, x[:, k + 1], (k + 1) * DT)
+        rewards.append(float(rt.reward(M, M1)[0]))
+        M = M1
+    assert np.all(np.isfinite(rewards))
+    names = rs.net.place_names
+    conjuncts = [str(c) for c in flatten(strip_weights(rs.normal_form), A.And)]
+    for tn in rs.timed:
+        root = dict(tn.subnets)[tn.tree.root]
+        places = [names[i] for i in rs.net.subnets[root].places]
+        marked = [p for p, i in zip(places, rs.net.subnets[root].places, strict=True) if M[0, i]]
+        assert len(marked) == 1 and marked[0].startswith(("p_met_", "p_failed_")), marked
+        sat = bool(monitor(spec, x, DT, formula=tn.tree.formula).satisfied[0])
+        assert marked[0].startswith("p_met_") == sat, (str(tn.tree.formula), marked)
+        if str(tn.tree.formula) in conjuncts:  # watched: its failure is charged
+            assert (names.index(marked[0].replace("p_met_", "p_failed_")) in np.flatnonzero(M[0])) == (not sat)

@@ -193,7 +193,9 @@ def bounds_without_violation(builder: ViolationWatches, net: Net, reward: R.RExp
             if net.place_index(tr.inputs[0]) != ok:
                 continue
             for term in tr.guard.terms:
-                sure = eval_state(term.state, truth) if term.state is not None else np.ones(n, bool)
+                sure = np.ones(n, bool)
+                if term.state is not None:  # broadcast: a constant has no proposition to take the shape of
+                    sure &= np.broadcast_to(eval_state(term.state, truth), (n,))
                 if term.clock is not None:
                     covered = np.zeros(n, dtype=bool)
                     for i, seg in segments.items():
