@@ -197,3 +197,31 @@ def test_compiled_timed_parts_end_where_the_monitor_does(f: A.Formula, codes: li
         assert marked[0].startswith("p_met_") == sat, (str(tn.tree.formula), marked)
         if str(tn.tree.formula) in conjuncts:  # watched: its failure is charged
             assert (names.index(marked[0].replace("p_met_", "p_failed_")) in np.flatnonzero(M[0])) == (not sat)
+
+
+def test_check_net_reports_what_the_runtime_recorded(tmp_path) -> None:
+    """``mitlc check --net``: reached within 2 s and held, but obs1 crossed at 0.39 s on the way."""
+    import json as _json
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from mitlc.cli.main import main
+
+    spec = Path(__file__).resolve().parent.parent / "specs" / "pendulum" / "n1_reach_in_time.mitl"
+    t = np.arange(101) * 0.03
+    trace = tmp_path / "tr.csv"
+    paths = [("through", np.interp(t, [0, 1.2, 3], [3.0, 0, 0])), ("late", np.interp(t, [0, 2.7, 3], [-3.0, 0, 0]))]
+    for name, q in paths:
+        qdot = np.gradient(q, 0.03)
+        rows = "".join(f"{a:.2f},{float(b)!r},{float(c)!r}\n" for a, b, c in zip(t, q, qdot, strict=True))
+        trace.write_text("t,q,qdot\n" + rows)
+        r = CliRunner().invoke(main, ["check", str(spec), str(trace), "--net", "--json"])
+        assert r.exit_code == 1, r.output
+        net = _json.loads(r.output)["net"]
+        if name == "through":  # the safety part's violation, at the monitor's time; the timed part is met
+            assert net["violated"] == ["p_violated_G_not_obs1"] and net["violation_time"] == 0.39
+            assert net["obligations"] == [{"formula": "F[0,2] G goal", "verdict": "met"}]
+        else:  # too slow: decided at 1.98 s, the window's last sample (2 / 0.03 is not a sample)
+            assert net["violated"] == ["p_failed_F2"] and net["violation_time"] == 1.98
+            assert net["obligations"] == [{"formula": "F[0,2] G goal", "verdict": "failed"}]

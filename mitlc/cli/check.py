@@ -23,6 +23,55 @@ def _finite_or_none(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+def _net_view(spec, tr, dt: float) -> dict:
+    """Step the spec's net (violations recorded: the spec's mode, or permanent) over the trace."""
+    import numpy as np
+
+    from mitlc.learn.runtime import NetRuntime
+    from mitlc.monitor.offline import state_columns
+    from mitlc.petri import reward as R
+    from mitlc.petri import timed as T
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.plants.base import wrap_angle
+
+    mode = None if spec.option("violations") != "off" else "permanent"
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=mode))
+    cols = state_columns(spec)
+    n = len(tr.t)
+    x = np.stack([np.asarray(tr.columns.get(c, np.zeros(n)), dtype=float) for c in cols], axis=1)
+    plant = spec.plant
+    for i, c in enumerate(cols):
+        if plant is not None and plant.var(c).periodic:
+            x[:, i] = wrap_angle(x[:, i])
+    rt = NetRuntime(rs, cols, dt=dt, steps=n - 1)
+    watched: list[str] = []
+    stack = [rs.charge] if rs.charge is not None else []
+    while stack:
+        e = stack.pop()
+        if isinstance(e, R.Tokens):
+            watched.extend(e.names)
+        stack.extend(e.children)
+    idx = [rs.net.place_index(p) for p in dict.fromkeys(watched)]
+    M = rt.reset(x[:1])
+    first, violated = None, []
+    for k in range(n):
+        if k:
+            M = rt.step(M, x[k : k + 1], k * dt)
+        marked = [rs.net.places[i].name for i in idx if M[0, i]]
+        if marked and first is None:
+            first, violated = float(tr.t[k]), marked
+    words = {T.TRUE: "met", T.FALSE: "failed", T.PENDING: "pending"}
+    verdicts = rt.verdicts()[0] if rs.timed else []
+    return {
+        "violation_time": first,
+        "violated": violated,
+        "obligations": [
+            {"formula": str(tn.tree.formula), "verdict": words[int(v)]}
+            for tn, v in zip(rs.timed, verdicts, strict=True)
+        ],
+    }
+
+
 @click.command("check")
 @click.argument("spec", type=click.Path(dir_okay=False))
 @click.argument("trace", type=click.Path(dir_okay=False))
@@ -34,8 +83,16 @@ def _finite_or_none(x: float) -> float | None:
     help="Check this formula (over the spec's propositions) instead of the spec's.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
+@click.option(
+    "--net",
+    "with_net",
+    is_flag=True,
+    help="Also step the spec's compiled reward net over the trace (the runtime the trainers and the Gymnasium "
+    "wrapper use) and report what it recorded: the first violation of a watched part (as with --violations "
+    "permanent) and the verdict of each timed obligation.",
+)
 @handle_errors
-def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> None:
+def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_net: bool) -> None:
     """Check a recorded TRACE (.csv or .npz) against SPEC (.mitl) with the MITL monitor.
 
     Prints the verdict, the robustness, the first time of violation and the
@@ -55,6 +112,10 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
     else:
         formula = judged_formula(s)
         needed = needed_variables(s, formula)
+    if with_net:
+        if s.formula is None:
+            raise InputError("--net needs a spec with a 'formula' (its net is what the option runs)", file="--net")
+        needed = tuple(dict.fromkeys((*needed, *needed_variables(s, s.formula))))
     tr, dt = read_trace(trace, needed, state_columns(s))
     try:
         result = monitor(s, tr.columns, dt, formula)
@@ -64,22 +125,22 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
     rob = float(result.robustness[0])
     # the time column's own value at the violating sample
     when = float(tr.t[int(round(result.violation_time[0] / dt))]) if not ok else None
+    net = _net_view(s, tr, dt) if with_net else None
     if as_json:
-        click.echo(
-            json.dumps(
-                {
-                    "spec": spec,
-                    "trace": trace,
-                    "formula": str(formula),
-                    "satisfied": ok,
-                    "robustness": _finite_or_none(rob),
-                    "violation_time": when,
-                    "failing": result.failing[0],
-                    "samples": int(len(tr.t)),
-                    "dt": dt,
-                }
-            )
-        )
+        out = {
+            "spec": spec,
+            "trace": trace,
+            "formula": str(formula),
+            "satisfied": ok,
+            "robustness": _finite_or_none(rob),
+            "violation_time": when,
+            "failing": result.failing[0],
+            "samples": int(len(tr.t)),
+            "dt": dt,
+        }
+        if net is not None:
+            out["net"] = net
+        click.echo(json.dumps(out))
     else:
         click.echo(f"{trace}: {'satisfied' if ok else 'VIOLATED'}")
         click.echo(f"  formula: {formula}")
@@ -87,5 +148,13 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool) -> Non
         if not ok:
             click.echo(f"  violated at: t = {when:g} s")
             click.echo(f"  failing: {result.failing[0]}")
+        if net is not None:
+            if net["violation_time"] is None:
+                click.echo("  net: no violation recorded")
+            else:
+                where = ", ".join(net["violated"])
+                click.echo(f"  net: violation recorded at t = {net['violation_time']:g} s in {where}")
+            for o in net["obligations"]:
+                click.echo(f"  net: {o['verdict']}: {o['formula']}")
     if not ok:
         click.get_current_context().exit(1)
