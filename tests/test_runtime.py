@@ -309,3 +309,47 @@ def test_compiled_predicates_agree_with_the_reference():
     for prop in spec.props:
         ref = Pr.evaluate(prop.pred, {"q": x[:, 0], "qdot": x[:, 1]})
         np.testing.assert_array_equal(compile_predicate(prop.pred, cols)(x), ref)
+
+
+def _many_eventuallys(n: int, props: int = 1) -> str:
+    parts = " & ".join(f"F[0,{0.5 + 0.04 * i:.2f}] a{i % props}" for i in range(n))
+    defs = "".join(f"prop a{j} = abs(q - {0.2 * j}) < 0.3\n" for j in range(props))
+    return f"plant pendulum\ninit q in [2.4, pi], qdot = 0\nhorizon 3\n{defs}formula {parts}\n"
+
+
+def test_compact_tables_follow_the_direct_rule() -> None:
+    """Twelve bounded eventuallys over two propositions: 2^12 x 13 x 4 product markings, too many to
+    tabulate; the reachable ones are tabulated instead and step exactly as the rule does."""
+    from mitlc.learn import runtime as RT
+
+    rs = compile_spec(parse_spec(_many_eventuallys(12, props=2)))
+    rt = NetRuntime(rs)
+    assert rt.compact and rt.tables is not None
+    assert rt.n_codes < math.prod(len(p) for p in rt.subnet_places)
+    rng = np.random.default_rng(3)
+    R, N = 64, 100
+    q = np.cumsum(rng.normal(0, 0.3, (R, N + 1)), axis=1) + rng.uniform(-1, 1, (R, 1))
+    x = np.stack([q, np.zeros_like(q)], axis=2)
+    code = rt.reset_code(x[:, 0])
+    M = rt.reset(x[:, 0])
+    np.testing.assert_array_equal(rt.decode(code), M)
+    for k in range(N):
+        tau = (k + 1) * 0.03
+        code1 = rt.step_code(code, x[:, k + 1], tau)
+        M1 = rt.step_direct(M, x[:, k + 1], tau)
+        np.testing.assert_array_equal(rt.decode(code1), M1)
+        np.testing.assert_array_equal(rt.reward_code(code, code1), rs.reward.evaluate(M, M1))
+        code, M = code1, M1
+    assert RT.MAX_TABLE  # the limit the product exceeded
+
+
+def test_sixty_bounded_eventuallys_train() -> None:
+    from mitlc.learn.sacpn import Sacpn
+
+    rs = compile_spec(parse_spec(_many_eventuallys(60)))
+    agent = Sacpn(rs, runs=3, seed=0)
+    assert agent.runtime.compact and agent.runtime.n_codes < 10_000
+    returns = agent.train(2)
+    assert returns.shape == (3, 2) and np.all(np.isfinite(returns))
+    ro = agent.rollout(agent.evaluation_states())
+    np.testing.assert_array_equal(ro.rewards, agent.runtime.reward_code(ro.codes[:, :-1], ro.codes[:, 1:]))

@@ -138,12 +138,13 @@ class NetRuntime:
 
         # mixed-radix marking codes: code = sum_s local_index_s * stride_s
         sizes = [len(p) for p in self.subnet_places]
-        strides = np.ones(len(sizes), dtype=np.int64)
-        for s in range(len(sizes) - 2, -1, -1):
-            strides[s] = strides[s + 1] * sizes[s + 1]
+        big = [math.prod(sizes[s + 1 :]) for s in range(len(sizes))]
+        # past int64 the mixed-radix codes are not used (compact tables or none at all)
+        strides = np.array([b if math.prod(sizes) < 2**62 else 0 for b in big], dtype=np.int64)
         self._sizes = sizes
         self._strides = strides
-        self.n_codes = int(np.prod(sizes)) if sizes else 1
+        self.n_codes = math.prod(sizes)  # a Python int: the product may not fit in int64
+        self.compact = False  # codes index the reachable markings (_build_compact) instead of mixed radix
         self._place_weight = np.zeros(self.n_places, dtype=np.int64)
         self._place_subnet = np.zeros(self.n_places, dtype=np.intp)
         for s, places in enumerate(self.subnet_places):
@@ -169,6 +170,8 @@ class NetRuntime:
         # counting places (violations = counted) are outside the one-token codes:
         # their increments are tabulated per (code, next code) pair
         self.counters = np.array(net.counters, dtype=np.intp)
+        self._clock_ends = np.zeros(0)
+        self.timed = rs.timed
         self.tables = self._build_tables()
 
         # timed obligation sub-nets (clock = standard with nested intervals): their tokens
@@ -219,7 +222,18 @@ class NetRuntime:
         return code
 
     def clock_code(self, tau: np.ndarray | float) -> np.ndarray | int:
-        """Which of the guards' clock intervals contain ``tau``, packed into an integer."""
+        """Which of the guards' clock intervals contain ``tau``, packed into an integer.
+
+        With compact tables (:meth:`_build_compact`) the index of the elementary clock
+        segment holding ``tau`` instead (the intervals' ends cut the time line into
+        points and open stretches on which every clock condition is constant).
+        """
+        if self.compact:
+            ends = self._clock_ends
+            j = np.searchsorted(ends, tau, side="left")
+            on = (j < len(ends)) & (ends[np.minimum(j, len(ends) - 1)] == tau) if len(ends) else False
+            seg = 2 * j + np.asarray(on, dtype=np.int64)
+            return int(seg) if np.ndim(tau) == 0 else seg
         if np.ndim(tau) == 0:
             tau = float(tau)
             return sum(1 << i for i, c in enumerate(self.clocks) if _clock_ok(c, tau))
@@ -241,10 +255,20 @@ class NetRuntime:
 
     def encode(self, M: np.ndarray) -> np.ndarray:
         """Marking ``(R, P)`` (one token per sub-net) to codes ``(R,)``."""
+        if self.compact:
+            assert self.tables is not None and self.tables.index is not None
+            index, rows = self.tables.index, np.ascontiguousarray(np.asarray(M, dtype=np.int8))
+            try:
+                return np.array([index[r.tobytes()] for r in rows], dtype=np.int64)
+            except KeyError:
+                raise ValueError("marking outside the net's reachable markings") from None
         return np.asarray(M, dtype=np.int64) @ self._place_weight
 
     def decode(self, code: np.ndarray) -> np.ndarray:
         """Codes ``(R,)`` to markings ``(R, P)``."""
+        if self.compact:
+            assert self.tables is not None and self.tables.markings is not None
+            return self.tables.markings[np.asarray(code, dtype=np.int64)].astype(np.int64)
         code = np.asarray(code, dtype=np.int64)
         M = np.zeros((code.shape[0], self.n_places), dtype=np.int64)
         rows = np.arange(code.shape[0])
@@ -331,6 +355,8 @@ class NetRuntime:
         return M
 
     def _timed_codes(self, code: np.ndarray, moves: list[tuple[int, np.ndarray]]) -> np.ndarray:
+        if self.compact:
+            return self.encode(self._timed_markings(self.decode(code), moves))
         code = np.array(code, dtype=np.int64)
         for s, local in moves:
             old = (code // self._strides[s]) % self._sizes[s]
@@ -442,15 +468,27 @@ class NetRuntime:
 
     def reward_code(self, code_prev: np.ndarray, code_next: np.ndarray) -> np.ndarray:
         """:meth:`reward` on marking codes."""
-        if self.tables is None:
-            return self.reward(self.decode(code_prev), self.decode(code_next))
+        if self.tables is None or self.tables.reward is None:
+            shape = np.shape(code_prev)
+            prev, nxt = np.ravel(code_prev), np.ravel(code_next)
+            return self.reward(self.decode(prev), self.decode(nxt)).reshape(shape)
         return self.tables.reward[code_prev, code_next]
+
+    def charge_code(self, code_prev: np.ndarray, code_next: np.ndarray) -> np.ndarray:
+        """What the violation penalty ``c`` multiplies on these steps (0 without violations)."""
+        if self.tables is not None and self.tables.charge is not None:
+            return self.tables.charge[code_prev, code_next]
+        if self.rs.charge is None:
+            return np.zeros(np.shape(code_prev))
+        shape = np.shape(code_prev)
+        prev, nxt = self.decode(np.ravel(code_prev)), self.decode(np.ravel(code_next))
+        return np.asarray(self.rs.charge.evaluate(prev, nxt), dtype=float).reshape(shape)
 
     def _build_tables(self) -> _Tables | None:
         n_atoms, n_clocks, n_codes = len(self.atoms), len(self.clocks), self.n_codes
         n_atom_codes, n_clock_codes = 1 << n_atoms, 1 << n_clocks
         if n_clock_codes * n_codes * n_atom_codes > MAX_TABLE or n_codes * n_codes > MAX_TABLE:
-            return None
+            return self._build_compact()
         codes = np.arange(n_codes, dtype=np.int64)
         markings = self.decode(codes)
         # every (code, atom code) pair in one batch
@@ -502,17 +540,138 @@ class NetRuntime:
             a.setflags(write=False)
         return _Tables(next_code, reward, charge, marked, counter_inc)
 
+    def _build_compact(self) -> _Tables | None:
+        """Tables over the *reachable* markings only, with elementary clock segments.
+
+        For nets whose sub-nets are many but move together (sixty bounded eventuallys of
+        one proposition: 2^60 products, a few thousand reachable markings), the firing
+        rule is tabulated by a breadth-first search from every initial marking
+        :meth:`reset` can produce (the state and timed sub-nets' tokens anywhere, the
+        others at ``M0``), and a code is an index into the reachable markings.  The
+        reward is tabulated too when the square of their number fits, and evaluated on
+        the markings otherwise.  ``None`` when even that is too large.
+        """
+        n_atoms = len(self.atoms)
+        if n_atoms > 16 or self.counters.size:
+            return None
+        n_atom_codes = 1 << n_atoms
+        ends = sorted({c.lo for c in self.clocks} | {c.hi for c in self.clocks if math.isfinite(c.hi)})
+        reps = [ends[0] - 1.0] if ends else [0.0]
+        for j, e in enumerate(ends):
+            reps += [e, (e + ends[j + 1]) / 2 if j + 1 < len(ends) else e + 1.0]
+        n_segs = len(reps)
+        seg_truth = np.array([[bool(_clock_ok(c, t)) for c in self.clocks] for t in reps], dtype=bool).reshape(
+            n_segs, len(self.clocks)
+        )
+        timed = {s for tn in self.timed for _, s in tn.subnets}
+        free = [s for s, sub in enumerate(self.net.subnets) if sub.kind == "state" or s in timed]
+        n_start = math.prod(len(self.subnet_places[s]) for s in free)
+        if n_start > MAX_TABLE // 64:
+            return None
+        # markings as local place indices per sub-net, (n, S); the same rule as _fire
+        S = self.n_subnets
+        local_of = np.zeros(self.n_places, dtype=np.int64)
+        for places in self.subnet_places:
+            local_of[places] = np.arange(len(places))
+        src_local, dst_local = local_of[self._src], local_of[self._dst]
+        m0 = np.asarray(self.net.M0)
+        base = np.array([local_of[places[np.argmax(m0[places])]] for places in self.subnet_places], dtype=np.int64)
+        grids = np.meshgrid(*[np.arange(len(self.subnet_places[s])) for s in free], indexing="ij")
+        start = np.tile(base, (n_start, 1))
+        for s, g in zip(free, grids, strict=True):
+            start[:, s] = g.reshape(-1)
+        # rows are told apart by a 64-bit hash, checked to be exact (two markings never share one)
+        weights = np.random.default_rng(20261201).integers(1, 2**63, size=S, dtype=np.uint64)
+        index: dict[int, int] = {}
+        rows: list[np.ndarray] = []
+
+        def add(batch: np.ndarray) -> np.ndarray:
+            with np.errstate(over="ignore"):
+                keys = (batch.astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64)
+            uniq, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+            if not np.array_equal(batch, batch[first][inverse.reshape(-1)]):
+                raise RuntimeError("marking hash collision")  # pragma: no cover - about 2^-40 here
+            ids = np.empty(len(uniq), dtype=np.int64)
+            for i, (key, j) in enumerate(zip(uniq.tolist(), first.tolist(), strict=True)):
+                if key not in index:
+                    index[key] = len(rows)
+                    rows.append(batch[j])
+                ids[i] = index[key]
+            return ids[inverse.reshape(-1)]
+
+        add(start)
+        atom_of = np.tile(np.arange(n_atom_codes, dtype=np.int64), n_segs)
+        seg_of = np.repeat(np.arange(n_segs), n_atom_codes)
+        transitions: dict[int, np.ndarray] = {}  # code -> next codes (segs x atom codes)
+        done = 0
+        while done < len(rows):
+            layer = np.arange(done, len(rows))
+            done = len(rows)
+            if done * n_segs * n_atom_codes > MAX_TABLE:
+                return None
+            L = np.repeat(np.array([rows[i] for i in layer], dtype=np.int64), n_segs * n_atom_codes, axis=0)
+            reps_atom = np.tile(atom_of, len(layer))
+            reps_seg = np.tile(seg_of, len(layer))
+            truth = {a: ((reps_atom >> i) & 1).astype(bool) for i, a in enumerate(self.atoms)}
+            clock_truth = [seg_truth[reps_seg, c] for c in range(len(self.clocks))]
+            guards = self._guards(truth, clock_truth, L.shape[0])
+            nxt = L.copy()
+            taken = np.zeros(L.shape, dtype=bool)
+            for t in range(len(self.net.transitions)):
+                sub = self._t_subnet[t]
+                fire = (L[:, sub] == src_local[t]) & guards[t] & ~taken[:, sub]
+                nxt[fire, sub] = dst_local[t]
+                taken[:, sub] |= fire
+            ids = add(nxt).reshape(len(layer), n_segs, n_atom_codes)
+            for i, code in enumerate(layer):
+                transitions[int(code)] = ids[i]
+        n_codes = len(rows)
+        if n_segs * n_codes * n_atom_codes > MAX_TABLE:
+            return None
+        next_code = np.stack([transitions[c] for c in range(n_codes)], axis=1)  # (segs, codes, atoms)
+        locals_ = np.array(rows, dtype=np.int64)
+        marked = np.stack([places[locals_[:, s]] for s, places in enumerate(self.subnet_places)], axis=1)
+        markings = np.zeros((n_codes, self.n_places), dtype=np.int8)
+        markings[np.arange(n_codes)[:, None], marked] = 1
+        by_bytes = {m.tobytes(): c for c, m in enumerate(markings)}
+        reward = charge = None
+        if n_codes * n_codes <= MAX_TABLE // 16:  # evaluating every pair of a large net costs more than it saves
+            prev = np.repeat(markings, n_codes, axis=0).astype(np.int64)
+            now = np.tile(markings, (n_codes, 1)).astype(np.int64)
+            reward = np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
+            charge = (
+                np.asarray(self.rs.charge.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
+                if self.rs.charge is not None
+                else np.zeros((n_codes, n_codes))
+            )
+        self.compact = True
+        self.n_codes = n_codes
+        self._clock_ends = np.array(ends, dtype=float)
+        counter_inc = np.zeros((0, 0, 0), dtype=np.int64)
+        for a in (next_code, markings, marked):
+            a.setflags(write=False)
+        return _Tables(next_code, reward, charge, marked, counter_inc, markings, by_bytes)
+
 
 class _Tables:
     """The firing rule and the reward tabulated over marking, atom and clock codes."""
 
-    __slots__ = ("next_code", "reward", "charge", "marked", "counter_inc")
+    __slots__ = ("next_code", "reward", "charge", "marked", "counter_inc", "markings", "index")
 
     def __init__(
-        self, next_code: np.ndarray, reward: np.ndarray, charge: np.ndarray, marked: np.ndarray, counter_inc: np.ndarray
+        self,
+        next_code: np.ndarray,
+        reward: np.ndarray | None,
+        charge: np.ndarray | None,
+        marked: np.ndarray,
+        counter_inc: np.ndarray,
+        markings: np.ndarray | None = None,
+        index: dict[bytes, int] | None = None,
     ) -> None:
         self.next_code = next_code  # (clock codes, marking codes, atom codes) -> marking code
-        self.reward = reward  # (marking codes, marking codes) -> r(M_k, M_k+1)
+        self.reward = reward  # (marking codes, marking codes) -> r(M_k, M_k+1); None: evaluate on markings
         self.charge = charge  # (marking codes, marking codes) -> what the penalty c multiplies (0 with off)
         self.marked = marked  # (marking codes, sub-nets) -> marked place index
         self.counter_inc = counter_inc  # (marking codes, marking codes, counters) -> tokens added
+        self.markings = markings  # compact tables: (marking codes, places) int8, the reachable markings
+        self.index = index  # compact tables: marking bytes -> code

@@ -237,7 +237,12 @@ class Sacpn:
         # gives it), G[k] = sum_{j < N-k} gamma^j
         self._known = rs.options.violations == "permanent" and settings.violation_value == "known"
         if self._known:
-            self._pen = rs.penalty * tables.charge.max(axis=0)
+            if tables.charge is not None:
+                self._pen = rs.penalty * tables.charge.max(axis=0)
+            else:  # compact tables without a reward table: the charge of the marking entered
+                assert tables.markings is not None and rs.charge is not None
+                m = tables.markings.astype(np.int64)
+                self._pen = rs.penalty * np.asarray(rs.charge.evaluate(m, m), dtype=float)
             self._pen_left = np.array(
                 [sum(settings.gamma**j for j in range(self.n_steps - k)) for k in range(self.n_steps + 1)]
             )
@@ -372,10 +377,18 @@ class Sacpn:
         rt = self.runtime
         tables = rt.tables
         assert tables is not None  # checked in __init__
-        next_code, reward_full, marked, marked_c = tables.next_code, tables.reward, self._marked, self._marked_c
+        next_code, marked, marked_c = tables.next_code, self._marked, self._marked_c
         # the penalty ramp: this trial pays s c instead of c (returns are counted with c)
         s_pen = self.penalty_scale(self.trial)
-        reward_tab = reward_full if s_pen >= 1.0 else reward_full + ((1.0 - s_pen) * self.rs.penalty) * tables.charge
+        dense = tables.reward is not None  # else (compact tables of a large net) the reward is evaluated
+        reward_full: np.ndarray = tables.reward if tables.reward is not None else np.zeros((0, 0))
+        reward_tab = reward_full
+        if dense and s_pen < 1.0:
+            assert tables.charge is not None
+            reward_tab = reward_full + ((1.0 - s_pen) * self.rs.penalty) * tables.charge
+        if not dense:
+            reward_code, charge_code = rt.reward_code, rt.charge_code
+            ramp = (1.0 - s_pen) * self.rs.penalty
         atom_code, features, integrate, clock = rt.atom_code, self.features, self.integrate, self._clock
         timed, advance = bool(rt.timed), rt.advance_code
         gamma, gl = st.gamma, st.gamma * st.lam
@@ -396,8 +409,8 @@ class Sacpn:
         x = xt.T
         x[...] = self.sample_init(self.rngs)
         noise = np.empty((N, R))
-        for r, g in enumerate(self.rngs):
-            noise[:, r] = g.standard_normal(N)
+        for i, g in enumerate(self.rngs):
+            noise[:, i] = g.standard_normal(N)
         noise *= self.sigma
 
         theta = self.theta
@@ -463,8 +476,14 @@ class Sacpn:
                 code1 = next_code[clock[k], code, atom_code(x)]
                 if timed:
                     code1 = advance(code1, x)
-                r = reward_tab[code, code1]
-                ret += r if s_pen >= 1.0 else reward_full[code, code1]
+                if dense:
+                    r = reward_tab[code, code1]
+                    ret += r if s_pen >= 1.0 else reward_full[code, code1]
+                else:
+                    r = reward_code(code, code1)
+                    ret += r
+                    if s_pen < 1.0:
+                        r = r + ramp * charge_code(code, code1)
                 features(x, out=phi_next)
                 flat1 = mk[code1]
                 flat1 += off
