@@ -270,6 +270,26 @@ def _count(c: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.where(hi_c > lo_c, n, 0)
 
 
+class _Windows:
+    """Fixed windows ``[lo[s], hi[s]]`` over positions ``0..L-1``, as prefix-count indices.
+
+    ``count(c)`` is the number of marked positions in each window, for prefix counts
+    ``c`` (:func:`_prefix`); an empty window counts 0.
+    """
+
+    __slots__ = ("lo", "hi", "length")
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray, L: int) -> None:
+        lo_c, hi_c = np.clip(lo, 0, L), np.clip(hi + 1, 0, L)
+        empty = hi_c <= lo_c
+        self.lo = np.where(empty, 0, lo_c).astype(np.intp)
+        self.hi = np.where(empty, 0, hi_c).astype(np.intp)
+        self.length = self.hi - self.lo
+
+    def count(self, c: np.ndarray) -> np.ndarray:
+        return c[:, self.hi] - c[:, self.lo]
+
+
 def _first_from(mask: np.ndarray) -> np.ndarray:
     """``out[:, s]`` = the first ``t >= s`` with ``mask[:, t]``, ``L`` if none."""
     L = mask.shape[1]
@@ -290,12 +310,14 @@ class TimedState:
         s = np.arange(L)
         self._window: dict[int, tuple[int, float]] = {}
         self._ranges: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._own: dict[int, _Windows] = {}  # each temporal node's window over its children's positions
         for i, n in enumerate(tree.nodes):
             if n.temporal:
                 lo, hi = A.offsets(n.interval, self.dt)
                 self._window[i] = (lo, hi)
                 hi_i = s + min(hi, L) if math.isfinite(hi) else np.full(L, L)
                 self._ranges[i] = (s + lo, np.minimum(hi_i, self.N))
+                self._own[i] = _Windows(*self._ranges[i], L)
         self.values = [np.full((self.R, L), PENDING, dtype=np.int8) for _ in tree.nodes]
         self._known: set[int] = set()
         for i, n in enumerate(tree.nodes):  # a valid or unsatisfiable state part is known in advance
@@ -307,6 +329,18 @@ class TimedState:
         for i, n in enumerate(tree.nodes):
             for c in n.children:
                 self._parent[c] = i
+        # which parent start times need a child's instance at s: s' in [s - hi, s - lo]
+        self._needs: dict[int, _Windows] = {}
+        for i in range(len(tree.nodes)):
+            p = self._parent[i]
+            if p < 0 or not tree.nodes[p].temporal:
+                continue
+            jlo, jhi = self._window[p]
+            parent = tree.nodes[p]
+            lo, hi = (0, jhi - 1) if parent.op in ("U", "R") and i == parent.children[0] else (jlo, jhi)
+            first = s - hi if math.isfinite(hi) else np.zeros(L, dtype=np.int64)
+            self._needs[i] = _Windows(np.maximum(first, 0).astype(np.int64), s - lo, L)
+        self._buf = np.zeros((self.R, L + 1), dtype=np.int32)
 
     # -- values
     def observe(self, truth: Mapping[str, np.ndarray]) -> None:
@@ -339,12 +373,18 @@ class TimedState:
                 self.values[i][...] = out if n.op == "U" else TRUE - out
         self._liveness()
 
+    def _prefix(self, mask: np.ndarray) -> np.ndarray:
+        np.cumsum(mask, axis=1, out=self._buf[:, 1:])
+        return self._buf
+
     def _eventually(self, i: int, v: np.ndarray) -> np.ndarray:
-        lo, hi = self._ranges[i]
-        some = _count(_prefix(v == TRUE), lo, hi) > 0
-        length = np.maximum(hi - lo + 1, 0)
-        none = _count(_prefix(v == FALSE), lo, hi) == length
-        return np.where(some, TRUE, np.where(none, FALSE, PENDING)).astype(np.int8)
+        w = self._own[i]
+        some = w.count(self._prefix(v == TRUE)) > 0
+        none = w.count(self._prefix(v == FALSE)) == w.length
+        out = np.full(v.shape, PENDING, dtype=np.int8)
+        out[none] = FALSE
+        out[some] = TRUE
+        return out
 
     def _until(self, i: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         lo, hi = self._ranges[i]
@@ -359,7 +399,6 @@ class TimedState:
 
     def _liveness(self) -> None:
         L = self.L
-        s = np.arange(L)
         nodes = self.tree.nodes
         root = self.tree.root
         for i in range(len(nodes) - 1, -1, -1):
@@ -368,19 +407,8 @@ class TimedState:
                 need[:, 0] = True
             else:
                 p = self._parent[i]
-                parent = nodes[p]
                 live_p = self.live[p]
-                if not parent.temporal:
-                    need = live_p
-                else:
-                    jlo, jhi = self._window[p]
-                    c = _prefix(live_p)
-                    if parent.op in ("U", "R") and i == parent.children[0]:
-                        lo, hi = 0, jhi - 1  # the left side is needed before the witness
-                    else:
-                        lo, hi = jlo, jhi
-                    first = s - hi if math.isfinite(hi) else np.zeros(L, dtype=np.int64)
-                    need = _count(c, np.maximum(first, 0).astype(np.int64), s - lo) > 0
+                need = live_p if i not in self._needs else self._needs[i].count(self._prefix(live_p)) > 0
             self.live[i] = need & (self.values[i] == PENDING)
 
     # -- tokens
