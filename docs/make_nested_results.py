@@ -6,7 +6,7 @@ count from their obligation's start) and with the thesis's trial clock; success 
 the monitor on each run's final greedy rollout, mean and 95 % interval over the
 seeds, and the input's total variation per second after 1.5 s (chattering).
 
-    python docs/make_nested_results.py --jobs 2     # about 12 minutes on 2 cores
+    python docs/make_nested_results.py --jobs 2     # about 15 minutes on 2 cores
 
 Writes the block between <!-- nested:begin --> and <!-- nested:end --> of
 docs/results.md, docs/figures/nested_inputs.png and docs/figures/nested.json.
@@ -48,7 +48,7 @@ T_975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571}  # Student's t, two-
 AFTER_S = 1.5  # chattering is measured after this time
 
 SPECS = [  # key, spec, trials, target, what it shows
-    ("N1", "n1_reach_in_time.mitl", 1000, 0.85, "reach within 2 s and stay, two obstacles (as P3, 1000 trials)"),
+    ("N1", "n1_reach_in_time.mitl", 2000, 0.85, "reach within 2 s and stay, two obstacles"),
     ("N2", "n2_hold_up.mitl", 500, 0.85, "up within 1.5 s, then hold slowly: no chattering after 1.5 s"),
     ("N3", "n3_bounded_response.mitl", 500, 0.85, "bounded response: every fast spell ends within 0.5 s"),
     ("N4", "n4_recurring_window.mitl", 500, 0.85, "F[1,2] under G[0,1]: several obligations live at once"),

@@ -35,7 +35,19 @@ and the clock only through which of the guards' clock intervals contain
 ``tau``.  When those sets are small, the runtime tabulates the rule above once
 (``next_code[clock, code, atom]`` and ``reward[code, code']``), and a step is
 two table look-ups.  The tables are built *from* the direct rule, and
-:meth:`NetRuntime.step` gives the same markings either way (tested).
+:meth:`NetRuntime.step` gives the same markings either way (tested).  When the
+product of the sub-nets' places is too large, only the markings reachable from
+those :meth:`NetRuntime.reset` can produce are tabulated (*compact* tables, codes
+index them), and the reward is evaluated on the markings if its table of pairs
+would be too large.
+
+Timed obligations
+-----------------
+The sub-nets of a formula part with nested intervals (``clock = standard``,
+:mod:`mitlc.petri.timed`) are moved by per-run obligation state, not by the
+tables: :meth:`NetRuntime.reset` starts it, :meth:`NetRuntime.step` and
+:meth:`NetRuntime.step_code` advance it (one sample per call, in order), and a
+trainer that looks ``next_code`` up itself calls :meth:`NetRuntime.advance_code`.
 
 >>> from mitlc.spec.parse import parse_spec
 >>> from mitlc.petri.compile import compile_spec
