@@ -1,6 +1,6 @@
 """The contract between the timed obligation net and the monitor (docs/semantics.md, section 7).
 
-For a random formula (depth up to 4, every operator, nested bounded and unbounded
+For each of 1800 random formulas (depth up to 4, every operator, nested bounded and unbounded
 intervals, open and closed ends, some off the sample grid) the net is run on *every*
 trace of 6 samples over two propositions (4096 traces), and the monitor judges the
 same traces.  Grouping the traces by their first ``k + 1`` samples gives, for every
@@ -65,7 +65,7 @@ intervals = st.one_of(strategies.grid_intervals(step=1.0, max_end=4), strategies
 nested = strategies.formulas(atoms=("a", "b"), interval=intervals, max_leaves=6).filter(lambda f: A.depth(f) <= 4)
 
 
-@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(max_examples=1800, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(nested)
 def test_never_early_and_exact_at_the_end(f: A.Formula) -> None:
     verdict, _ = run(f)
