@@ -17,6 +17,7 @@ prefix, the exact set of its continuations, so the tests check:
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import strategies
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -225,3 +226,29 @@ def test_check_net_reports_what_the_runtime_recorded(tmp_path) -> None:
         else:  # too slow: decided at 1.98 s, the window's last sample (2 / 0.03 is not a sample)
             assert net["violated"] == ["p_failed_F2"] and net["violation_time"] == 1.98
             assert net["obligations"] == [{"formula": "F[0,2] G goal", "verdict": "failed"}]
+
+
+@pytest.mark.parametrize(
+    "formula",
+    [
+        "G (a -> F[0,{b}] b)",
+        "F[0,{b}] G a",
+        "G[0,{b}] F[{b},{c}] a",
+        "a U[0,{c}] (G[0,{b}] b)",
+        "b R[0,{b}] F[0,{c}] a",
+    ],
+)
+def test_the_net_does_not_grow_with_the_bounds_or_the_sample_period(formula: str) -> None:
+    """Places and transitions depend on the operators only: bounds 0.5 .. 50 s, dt 0.01 .. 0.1 s."""
+    from mitlc.petri.compile import compile_spec
+
+    shapes = set()
+    for b, c, dt in [(0.5, 1.0, 0.1), (2.0, 3.0, 0.05), (50.0, 80.0, 0.01)]:
+        spec = parse_spec(
+            f"plant pendulum(dt = {dt})\nhorizon 100\nprop a = q > 0\nprop b = qdot > 0\n"
+            f"formula {formula.format(b=b, c=c)}\n"
+        )
+        rs = compile_spec(spec)
+        assert rs.timed
+        shapes.add((rs.net.place_names, rs.net.D.shape))
+    assert len(shapes) == 1
