@@ -95,6 +95,8 @@ def _net_view(spec, tr, dt: float) -> dict:
 def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_net: bool) -> None:
     """Check a recorded TRACE (.csv or .npz) against SPEC (.mitl) with the MITL monitor.
 
+    SPEC is a .mitl file or the name of a shipped spec (pendulum/p2_avoid; mitlc specs lists them).
+
     Prints the verdict, the robustness, the first time of violation and the
     failing subformula. Exit code 0 if satisfied, 1 if violated, 2 on bad input.
     """

@@ -49,7 +49,10 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
 def compile_cmd(
     spec: str, fmt: str, output: str | None, conjunction: str | None, violations: str | None, clock: str | None
 ) -> None:
-    """Compile SPEC (.mitl) into a reward Petri net and reward expression."""
+    """Compile SPEC (.mitl) into a reward Petri net and reward expression.
+
+    SPEC is a .mitl file or the name of a shipped spec (pendulum/p2_avoid; mitlc specs lists them).
+    """
     from mitlc.petri import export
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec

@@ -312,7 +312,10 @@ def train_hybrid_cli(
 @output_option
 @handle_errors
 def automaton(spec: str, fmt: str, output: str | None) -> None:
-    """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B)."""
+    """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B).
+
+    SPEC is a .mitl file or the name of a shipped spec (pendulum/p2_avoid; mitlc specs lists them).
+    """
     from mitlc.hybrid import compile_requirements, render_bytes
     from mitlc.spec.parse import load_spec
 

@@ -137,7 +137,10 @@ def sweep(
     no_plot,
     quiet,
 ) -> None:
-    """Train SPEC over a grid of trainer settings, weights and options, several seeds each."""
+    """Train SPEC over a grid of trainer settings, weights and options, several seeds each.
+
+    SPEC is a .mitl file or the name of a shipped spec (pendulum/p2_avoid; mitlc specs lists them).
+    """
     from tqdm import tqdm
 
     from mitlc.learn.plots import png_bytes

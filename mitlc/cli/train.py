@@ -177,7 +177,8 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
     "spec_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Spec file (.mitl); default: the plant's default spec.",
+    help="Spec file (.mitl) or a shipped spec's name (pendulum/p2_avoid; mitlc specs lists them); "
+    "default: the plant's default spec.",
 )
 @click.option("--runs", type=click.IntRange(1, 10000), default=30, show_default=True, help="Independent runs.")
 @click.option(
@@ -402,7 +403,7 @@ def train(
     "spec_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Spec to judge by and start from (default: the training spec).",
+    help="Spec (file or shipped name) to judge by and start from (default: the training spec).",
 )
 @click.option(
     "--rollouts",

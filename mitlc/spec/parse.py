@@ -713,12 +713,23 @@ def _parse_spec(text: str, path: str | None) -> Spec:
 
 
 def load_spec(path: str | Path) -> Spec:
-    """Read and check a ``.mitl`` file."""
+    """Read and check a ``.mitl`` file, or a shipped spec by name (``pendulum/p2_avoid``).
+
+    A file of that name wins; without one, the shipped specs
+    (:mod:`mitlc.spec.library`, ``mitlc specs`` lists them) are looked up.
+    """
+    from mitlc.spec import library
+
     p = Path(path)
+    if not p.exists() and (shipped := library.find(str(path))) is not None:
+        return parse_spec(shipped.read_text(), shipped.origin)
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
-        raise SpecError(f"cannot read spec: {exc.strerror}", file=str(path)) from None
+        hint = None
+        if not p.exists():
+            hint = "no file of that name, and no shipped spec either (mitlc specs lists them, e.g. pendulum/p2_avoid)"
+        raise SpecError(f"cannot read spec: {exc.strerror}", file=str(path), hint=hint) from None
     except UnicodeDecodeError:
         raise SpecError("spec is not UTF-8 text", file=str(path)) from None
     return parse_spec(text, str(path))
