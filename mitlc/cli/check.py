@@ -13,7 +13,7 @@ import math
 
 import click
 
-from mitlc.cli.common import handle_errors
+from mitlc.cli.common import handle_errors, plant_file_option
 from mitlc.errors import InputError, MitlError
 
 __all__ = ["check"]
@@ -91,6 +91,7 @@ def _net_view(spec, tr, dt: float) -> dict:
     "wrapper use) and report what it recorded: the first violation of a watched part (as with --violations "
     "permanent) and the verdict of each timed obligation.",
 )
+@plant_file_option
 @handle_errors
 def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_net: bool) -> None:
     """Check a recorded TRACE (.csv or .npz) against SPEC (.mitl) with the MITL monitor.

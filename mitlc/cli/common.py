@@ -16,7 +16,7 @@ import click
 from mitlc.errors import InputError, MitlError
 from mitlc.fileio import atomic_write
 
-__all__ = ["handle_errors", "atomic_write", "output_option", "write_result", "PICTURES"]
+__all__ = ["handle_errors", "atomic_write", "output_option", "plant_file_option", "write_result", "PICTURES"]
 
 PICTURES = ("svg", "png")
 """Formats that are rendered pictures (need ``-o FILE``)."""
@@ -34,6 +34,32 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
             sys.exit(2)
 
     return wrapper
+
+
+def _load_plant_files(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]) -> None:
+    from mitlc.plants.user import load_plants
+
+    for v in values:
+        try:
+            load_plants(v)
+        except MitlError as exc:
+            click.echo(exc.render(), err=True)
+            ctx.exit(2)
+
+
+def plant_file_option(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``--plant-file FILE.py|MODULE:ATTR`` (repeatable): register the user's plants before the spec is read."""
+    return click.option(
+        "--plant-file",
+        multiple=True,
+        metavar="FILE.py|MODULE:ATTR",
+        expose_value=False,
+        is_eager=True,
+        callback=_load_plant_files,
+        help="Your own plant: a Python file (every Plant in it) or module:attribute (a Plant, a list of "
+        "them, or a function returning one); repeat for more. Installed packages add plants through "
+        "the 'mitlc.plants' entry point. mitlc plants lists them (docs/plants.md).",
+    )(fn)
 
 
 def output_option(fn: Callable[..., Any]) -> Callable[..., Any]:

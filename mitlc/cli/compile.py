@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import click
 
-from mitlc.cli.common import handle_errors, output_option, write_result
+from mitlc.cli.common import handle_errors, output_option, plant_file_option, write_result
 from mitlc.spec.model import OPTIONS
 
 __all__ = ["compile_cmd", "FORMATS"]
@@ -45,6 +45,7 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
     help="standard: nested intervals count from their obligation's start (MITL); trial: every "
     "interval on the trial clock, the thesis's reading (overrides the spec's option).",
 )
+@plant_file_option
 @handle_errors
 def compile_cmd(
     spec: str, fmt: str, output: str | None, conjunction: str | None, violations: str | None, clock: str | None

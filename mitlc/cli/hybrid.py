@@ -31,7 +31,7 @@ from typing import Any
 import click
 import numpy as np
 
-from mitlc.cli.common import atomic_write, handle_errors, output_option, write_result
+from mitlc.cli.common import atomic_write, handle_errors, output_option, plant_file_option, write_result
 from mitlc.errors import InputError, TrainingError
 from mitlc.spec.model import Spec
 
@@ -310,6 +310,7 @@ def train_hybrid_cli(
     help="What to write: a readable summary, JSON, Graphviz DOT or a rendered picture.",
 )
 @output_option
+@plant_file_option
 @handle_errors
 def automaton(spec: str, fmt: str, output: str | None) -> None:
     """Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B).
@@ -433,6 +434,7 @@ def simulate_hybrid(
     help="Beyond the thesis: first retrain the policies of S, P and the last evaluating mode "
     "for this many trials from the states the earlier modes hand over (0: plain composition).",
 )
+@plant_file_option
 @handle_errors
 def compose_cmd(
     spec: str,

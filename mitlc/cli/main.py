@@ -12,6 +12,7 @@ from mitlc import __version__
 from mitlc.cli.check import check
 from mitlc.cli.compile import compile_cmd
 from mitlc.cli.hybrid import automaton, compose_cmd
+from mitlc.cli.plants import plants
 from mitlc.cli.specs import specs
 from mitlc.cli.sweep import sweep
 from mitlc.cli.train import simulate, train
@@ -25,5 +26,5 @@ def main() -> None:
     """Compile MITL control specs into reward Petri nets, train and check controllers."""
 
 
-for command in (compile_cmd, check, train, simulate, sweep, automaton, compose_cmd, specs):
+for command in (compile_cmd, check, train, simulate, sweep, automaton, compose_cmd, specs, plants):
     main.add_command(command)

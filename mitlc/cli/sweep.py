@@ -17,7 +17,7 @@ from typing import Any
 
 import click
 
-from mitlc.cli.common import atomic_write, handle_errors
+from mitlc.cli.common import atomic_write, handle_errors, plant_file_option
 from mitlc.errors import InputError
 from mitlc.spec.model import OPTIONS
 
@@ -120,6 +120,7 @@ def _list(spec) -> str:
 @click.option("--list", "list_only", is_flag=True, help="Print every grid name with its current value and exit.")
 @click.option("--no-plot", is_flag=True, help="Skip sweep.png.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@plant_file_option
 @handle_errors
 def sweep(
     spec_path,

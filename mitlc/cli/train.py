@@ -26,7 +26,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from mitlc.cli.common import atomic_write, handle_errors
+from mitlc.cli.common import atomic_write, handle_errors, plant_file_option
 from mitlc.errors import InputError, TrainingError
 from mitlc.spec.model import OPTIONS
 
@@ -254,6 +254,7 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
 )
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@plant_file_option
 @handle_errors
 def train(
     plant_name,
@@ -419,6 +420,7 @@ def train(
     default=None,
     help="Write the figure here (default DIR/simulate.png).",
 )
+@plant_file_option
 @handle_errors
 def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
     """Roll out a trained greedy policy from the spec's initial set and judge each rollout.

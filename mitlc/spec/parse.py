@@ -509,10 +509,16 @@ def _parse_spec(text: str, path: str | None) -> Spec:
             once("plant", tok)
             name = str(tok)
             if name not in PLANTS:
+                from mitlc.plants.user import discover
+
+                discover()  # installed packages' mitlc.plants entry points
+            if name not in PLANTS:
                 raise SpecError(
                     f"unknown plant '{name}' (known: {', '.join(sorted(PLANTS))})",
                     line=tok.line,
                     column=tok.column,
+                    hint="a plant of your own: --plant-file FILE.py (or module:attribute), or an installed "
+                    "package's 'mitlc.plants' entry point; mitlc plants lists the known ones (docs/plants.md)",
                 )
             plant_name = name
             for ptok, value in params:
