@@ -14,7 +14,6 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 __all__ = ["ShippedSpec", "shipped_specs", "find", "SUFFIX"]
@@ -46,10 +45,11 @@ class ShippedSpec:
 
 
 def _root() -> Path:
-    local = Path(__file__).resolve().parents[2] / "specs"  # a source checkout that is not installed
-    if local.is_dir():
+    here = Path(__file__).resolve().parents[1]  # the mitlc package
+    local = here.parent / "specs"  # a source checkout (or an editable install)
+    if local.is_dir() and (here.parent / "pyproject.toml").is_file():
         return local
-    return Path(str(resources.files("mitlc.specs")))
+    return here / "specs"  # the wheel's copy (package data mitlc.specs, a namespace package)
 
 
 def shipped_specs() -> dict[str, ShippedSpec]:
