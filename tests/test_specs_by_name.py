@@ -50,3 +50,20 @@ def test_a_file_of_that_name_wins_and_unknown_names_say_where_to_look(tmp_path, 
     assert "pendulum/p2_avoidx: error: cannot read spec" in r.output and "mitlc specs lists them" in r.output
     r = CliRunner().invoke(main, ["specs", "pendulum/p2_avoidx"])
     assert r.exit_code == 2 and "no shipped spec 'pendulum/p2_avoidx'" in r.output
+
+
+def test_an_installed_wheel_finds_its_own_copy(tmp_path) -> None:
+    """In site-packages there is no checkout: the specs are the package data next to mitlc/."""
+    import importlib.util
+    import shutil
+
+    site = tmp_path / "site"
+    (site / "mitlc" / "spec").mkdir(parents=True)
+    (site / "mitlc" / "specs" / "cart").mkdir(parents=True)
+    shutil.copy(ROOT / "mitlc" / "spec" / "library.py", site / "mitlc" / "spec" / "library.py")
+    (site / "mitlc" / "specs" / "cart" / "reach.mitl").write_text("# reach it\nprop a = x < 1\nformula F a\n")
+    spec = importlib.util.spec_from_file_location("wheel_library", site / "mitlc" / "spec" / "library.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert list(module.shipped_specs()) == ["cart/reach"]
+    assert module.find("cart/reach.mitl").summary() == "reach it"
