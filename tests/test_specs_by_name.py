@@ -52,10 +52,11 @@ def test_a_file_of_that_name_wins_and_unknown_names_say_where_to_look(tmp_path, 
     assert r.exit_code == 2 and "no shipped spec 'pendulum/p2_avoidx'" in r.output
 
 
-def test_an_installed_wheel_finds_its_own_copy(tmp_path) -> None:
+def test_an_installed_wheel_finds_its_own_copy(tmp_path, monkeypatch) -> None:
     """In site-packages there is no checkout: the specs are the package data next to mitlc/."""
     import importlib.util
     import shutil
+    import sys
 
     site = tmp_path / "site"
     (site / "mitlc" / "spec").mkdir(parents=True)
@@ -64,6 +65,7 @@ def test_an_installed_wheel_finds_its_own_copy(tmp_path) -> None:
     (site / "mitlc" / "specs" / "cart" / "reach.mitl").write_text("# reach it\nprop a = x < 1\nformula F a\n")
     spec = importlib.util.spec_from_file_location("wheel_library", site / "mitlc" / "spec" / "library.py")
     module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "wheel_library", module)  # dataclasses look their module up
     spec.loader.exec_module(module)
     assert list(module.shipped_specs()) == ["cart/reach"]
     assert module.find("cart/reach.mitl").summary() == "reach it"
