@@ -12,8 +12,9 @@ the bit.  On problem 1 (swing up with a weak motor) the defaults take a few
 seconds and every run learns to swing up and stay up.
 
 Writes ``<out>/params.npz`` (the learner's checkpoint, readable by
-``mitlc simulate``) and ``<out>/rollout.npz`` (the greedy rollouts: states,
-actions, rewards).
+``mitlc simulate`` and ``mitlc.load_policy``) and ``<out>/rollout.npz``: run 0's
+greedy rollout as a trace ``mitlc check SPEC <out>/rollout.npz`` reads (``t``,
+``q``, ``qdot``), and every run's states, actions and rewards.
 """
 
 from __future__ import annotations
@@ -71,8 +72,18 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     agent.save(out / "params.npz")
+    # run 0's rollout as a trace `mitlc check SPEC rollout.npz` reads (t, q, qdot), and every
+    # run's states, inputs and rewards beside it (check ignores arrays it does not need)
+    t = np.arange(rollout.states.shape[1]) * rollout.dt
     np.savez(
-        out / "rollout.npz", states=rollout.states, actions=rollout.actions, rewards=rollout.rewards, dt=rollout.dt
+        out / "rollout.npz",
+        t=t,
+        q=rollout.states[0, :, 0],
+        qdot=rollout.states[0, :, 1],
+        states=rollout.states,
+        actions=rollout.actions,
+        rewards=rollout.rewards,
+        dt=rollout.dt,
     )
     print(f"wrote params.npz, rollout.npz to {out}")
     return 0

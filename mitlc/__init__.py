@@ -12,6 +12,16 @@ from mitlc.spec.parse import load_spec, parse_formula, parse_spec
 
 __version__ = "0.1.0"
 
+
+def load_policy(directory):  # noqa: ANN001, ANN201 - typed in mitlc.learn.policy
+    """The trained policy in ``directory`` (``mitlc train --out``): SACPN or HyRL, with
+    ``reset(x0)``, ``act(x, state)``, ``step(state, x_next)`` and ``spec``
+    (:mod:`mitlc.learn.policy`; imported when called, so ``import mitlc`` stays light)."""
+    from mitlc.learn.policy import load_policy as _load
+
+    return _load(directory)
+
+
 __all__ = [
     "CompileError",
     "CompileOptions",
@@ -22,6 +32,7 @@ __all__ = [
     "SpecSyntaxError",
     "TrainingError",
     "compile_spec",
+    "load_policy",
     "load_spec",
     "parse_formula",
     "parse_spec",

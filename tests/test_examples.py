@@ -163,6 +163,15 @@ def test_train_pendulum(tmp_path: Path) -> None:
     with np.load(out / "params.npz") as saved:
         np.testing.assert_array_equal(saved["xi"], agent.xi)
         assert saved["returns"].shape == (2, 300)
+    # the rollout file is a trace mitlc check reads: run 0's verdict
+    from click.testing import CliRunner
+
+    from mitlc.cli.main import main
+
+    checked = CliRunner().invoke(
+        main, ["check", str(ROOT / "specs" / "pendulum" / "p1_swing_up.mitl"), str(out / "rollout.npz")]
+    )
+    assert checked.exit_code == (0 if verdict.satisfied[0] else 1), checked.output
 
 
 def test_train_pendulum_bad_spec(tmp_path: Path) -> None:

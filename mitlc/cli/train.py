@@ -420,9 +420,17 @@ def train(
     default=None,
     help="Write the figure here (default DIR/simulate.png).",
 )
+@click.option(
+    "--trace",
+    "trace_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Also write each rollout as a trace that 'mitlc check' reads: FILE.csv or FILE.npz for one "
+    "rollout, FILE_000.csv, FILE_001.csv, ... for several (.npz traces carry the inputs u too).",
+)
 @plant_file_option
 @handle_errors
-def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
+def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> None:
     """Roll out a trained greedy policy from the spec's initial set and judge each rollout.
 
     HyRL policies (classical criteria) are judged by the checker; several of them run
@@ -437,9 +445,13 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
             f"no {PARAMS} in {policy_dir} (train first with 'mitlc train --out DIR')", file=str(policy_dir)
         )
     meta = read_meta(ckpt)
+    if trace_path is not None and Path(trace_path).suffix.lower() not in (".csv", ".npz"):
+        raise InputError("a trace is written as .csv or .npz", file=f"--trace {trace_path}")
     if meta.get("kind") == "hyrl":
         from mitlc.cli.hybrid import simulate_hybrid
 
+        if trace_path is not None:
+            raise InputError("--trace writes SACPN rollouts; a HyRL rollout is judged by criteria", file="--trace")
         simulate_hybrid(policy_dirs, spec_path, rollouts, seed, plot_path)
         return
     if len(policy_dirs) > 1:
@@ -481,6 +493,16 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path) -> None:
             f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}"
         )
     click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
+    if trace_path is not None:
+        from mitlc.monitor.trace import write_trace
+
+        base = Path(trace_path)
+        paths = [base] if n == 1 else [base.with_name(f"{base.stem}_{i:03d}{base.suffix}") for i in range(n)]
+        t = np.arange(ro.states.shape[1]) * ro.dt
+        for i, p in enumerate(paths):
+            cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
+            write_trace(p, t, cols, {"u": ro.actions[i]})
+        click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
     atomic_write(
         plot_path or Path(policy_dir) / "simulate.png",
         _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"),

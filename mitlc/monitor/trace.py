@@ -11,13 +11,14 @@ from __future__ import annotations
 import csv
 import math
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from mitlc.errors import InputError
 
-__all__ = ["Trace", "read_trace", "UNIFORM_TOL"]
+__all__ = ["Trace", "read_trace", "write_trace", "UNIFORM_TOL"]
 
 UNIFORM_TOL = 1e-3
 """How far (as a fraction of the time step) a sample time may stray from the uniform grid."""
@@ -169,3 +170,29 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
             line=trace.line(k),
         )
     return trace, dt
+
+
+def write_trace(
+    path: str | Path, t: np.ndarray, columns: Mapping[str, np.ndarray], extra: Mapping[str, np.ndarray] | None = None
+) -> None:
+    """Write one trace in the format :func:`read_trace` (and ``mitlc check``) reads, atomically.
+
+    ``.csv``: a header ``t,<column>,...`` and one row per sample, every float written so
+    that it reads back exactly; ``.npz``: the arrays ``t``, one per column, and ``extra``
+    (e.g. the inputs ``u``, one fewer than the samples), which ``check`` ignores.
+    """
+    from mitlc.fileio import atomic_write, save_npz
+
+    t = np.asarray(t, dtype=float)
+    cols = {n: np.asarray(v, dtype=float) for n, v in columns.items()}
+    suffix = Path(path).suffix.lower()
+    if suffix == ".csv":
+        names = list(cols)
+        lines = [",".join(["t", *names])]
+        for k in range(t.shape[0]):
+            lines.append(",".join(repr(float(x)) for x in [t[k], *(cols[n][k] for n in names)]))
+        atomic_write(path, "\n".join(lines) + "\n")
+    elif suffix == ".npz":
+        save_npz(path, {"t": t, **cols, **{k: np.asarray(v) for k, v in (extra or {}).items()}})
+    else:
+        raise InputError(f"a trace is written as .csv or .npz, not '{suffix or Path(path).name}'", file=str(path))
