@@ -75,12 +75,12 @@ except ImportError as exc:  # pragma: no cover - exercised in a subprocess by te
 from mitlc.errors import InputError
 from mitlc.learn.runtime import NetRuntime
 from mitlc.petri.compile import RewardSystem, compile_spec
-from mitlc.plants.base import wrap_angle
+from mitlc.plants.base import PLANTS, make_integrator, wrap_angle
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
 from mitlc.spec.parse import load_spec
 
-__all__ = ["MitlRewardWrapper", "pendulum_v1_state", "Observe", "MARKING_OBS", "VERDICT"]
+__all__ = ["MitlRewardWrapper", "MitlPlantEnv", "ENV_IDS", "pendulum_v1_state", "Observe", "MARKING_OBS", "VERDICT"]
 
 Observe = Callable[[Any], Mapping[str, float]] | Mapping[str, int | Callable[[Any], float]]
 """How to read the spec's state variables off an observation."""
@@ -477,3 +477,126 @@ def _token_bounds(rs: RewardSystem) -> np.ndarray:
     bounds = np.ones(len(rs.net.places))
     bounds[list(rs.net.counters)] = np.inf
     return bounds
+
+
+class MitlPlantEnv(gym.Env):
+    """One of mitlc's plants as a Gymnasium environment that pays a spec's compiled reward.
+
+    ``gymnasium.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid")`` (registered when
+    :mod:`mitlc.gym` is imported; ``"mitlc.gym:mitlc/Pendulum-v0"`` imports it for you).
+    ``spec`` is a :class:`RewardSystem`, a :class:`Spec`, a path or a shipped spec's name
+    (default: the plant's default spec); its ``init`` box is the reset distribution, its
+    ``horizon`` the episode length (truncated there). Observations are
+    ``{"obs": x, "marking": M}`` (plus ``"clocks"`` with nested intervals), or one flat
+    ``Box`` with ``marking_obs="box"``; the action is the input ``u`` in ``[-u_max, u_max]``.
+    ``info`` carries ``marking`` and ``tau``.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(
+        self,
+        spec: RewardSystem | Spec | str | os.PathLike | None = None,
+        plant: str = "pendulum",
+        marking_obs: str = "dict",
+        render_mode: str | None = None,
+    ) -> None:
+        if plant not in PLANTS:
+            raise InputError(f"unknown plant '{plant}' (known: {', '.join(sorted(PLANTS))})")
+        if spec is None:
+            default = PLANTS[plant].default_spec
+            if not default:
+                raise InputError(f"plant '{plant}' has no default spec: pass spec=")
+            spec = default.removesuffix(".mitl")
+        rs = _reward_system(spec)
+        s = rs.spec
+        if s.plant_name != plant:
+            raise InputError(f"the spec is for plant '{s.plant_name}', not '{plant}'", file=s.path)
+        if s.horizon is None:
+            raise InputError("the spec has no 'horizon': the episode length", file=s.path)
+        if marking_obs not in MARKING_OBS:
+            raise InputError(f"marking_obs must be one of {', '.join(MARKING_OBS)}, got {marking_obs!r}")
+        self.reward_system, self.mitl_spec, self.marking_obs = rs, s, marking_obs
+        self.plant = PLANTS[plant]
+        self.params = self.plant.params({k: v for k, v in s.plant_params})
+        self.dt = float(self.params["dt"])
+        self.u_max = float(self.params["u_max"])
+        self.steps = max(1, int(round(s.horizon / self.dt)))
+        self.runtime = NetRuntime(rs, self.plant.state_names, dt=self.dt, steps=self.steps)
+        self._integrate = make_integrator(self.plant, self.params)
+        init = {r.var: (r.lo, r.hi) for r in s.init}
+        self._init = np.array([init.get(v, (0.0, 0.0)) for v in self.plant.state_names], dtype=float)
+        self._periodic = np.array([v.periodic for v in self.plant.state])
+        high = np.array([np.pi if v.periodic else np.inf for v in self.plant.state], dtype=np.float32)
+        state_space = spaces.Box(-high, high, dtype=np.float32)
+        self.place_names = rs.net.place_names
+        self.token_bounds = _token_bounds(rs)
+        self.n_clocks = sum(len(tn.subnets) for tn in rs.timed)
+        n_places = len(self.place_names)
+        binary = bool(np.all(self.token_bounds == 1))
+        self._binary = binary
+        if marking_obs == "dict":
+            marking_space: spaces.Space = (
+                spaces.MultiBinary(n_places)
+                if binary
+                else spaces.Box(np.zeros(n_places, np.float32), self.token_bounds.astype(np.float32), dtype=np.float32)
+            )
+            entries: dict[str, spaces.Space] = {"obs": state_space, "marking": marking_space}
+            if self.n_clocks:
+                entries["clocks"] = spaces.Box(0.0, np.inf, (self.n_clocks,), dtype=np.float32)
+            self.observation_space = spaces.Dict(entries)
+        else:
+            low = np.concatenate([-high, np.zeros(n_places + self.n_clocks, np.float32)])
+            top = np.concatenate(
+                [high, self.token_bounds.astype(np.float32), np.full(self.n_clocks, np.inf, np.float32)]
+            )
+            self.observation_space = spaces.Box(low, top, dtype=np.float32)
+        self.action_space = spaces.Box(-self.u_max, self.u_max, (1,), dtype=np.float32)
+        self.render_mode = render_mode
+        self._x = np.zeros((1, len(self.plant.state)))
+        self._M = np.tile(np.asarray(rs.net.M0, dtype=np.int64), (1, 1))
+        self._k = 0
+
+    def _obs(self) -> Any:
+        x = self._x[0].astype(np.float32)
+        marking = self._M[0]
+        clocks = self.runtime.obligation_clocks()[0].astype(np.float32) if self.n_clocks else np.zeros(0, np.float32)
+        if self.marking_obs == "dict":
+            out: dict[str, Any] = {
+                "obs": x,
+                "marking": marking.astype(np.int8) if self._binary else marking.astype(np.float32),
+            }
+            if self.n_clocks:
+                out["clocks"] = clocks
+            return out
+        return np.concatenate([x, marking.astype(np.float32), clocks])
+
+    def _info(self) -> dict[str, Any]:
+        return {"marking": self._M[0].copy(), "tau": self._k * self.dt}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        super().reset(seed=seed)
+        lo, hi = self._init[:, 0], self._init[:, 1]
+        x = self.np_random.uniform(lo, hi)[None, :]
+        x[:, self._periodic] = wrap_angle(x[:, self._periodic])
+        self._x, self._k = x, 0
+        self._M = self.runtime.reset(self._x)
+        return self._obs(), self._info()
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        u = np.clip(np.asarray(action, dtype=float).reshape(-1)[:1], -self.u_max, self.u_max)
+        self._integrate(self._x, u)
+        self._k += 1
+        M_next = self.runtime.step(self._M, self._x, self._k * self.dt)
+        reward = float(self.runtime.reward(self._M, M_next)[0])
+        self._M = M_next
+        truncated = self._k >= self.steps
+        return self._obs(), reward, False, truncated, self._info()
+
+
+ENV_IDS = {"mitlc/Pendulum-v0": "pendulum", "mitlc/MassDamper-v0": "mass-damper"}
+"""The registered environments of mitlc's own plants (registered when this module is imported)."""
+
+for _env_id, _plant in ENV_IDS.items():
+    if _env_id not in gym.registry:
+        gym.register(id=_env_id, entry_point="mitlc.gym:MitlPlantEnv", kwargs={"plant": _plant})

@@ -15,7 +15,7 @@ import pytest
 gym = pytest.importorskip("gymnasium", reason="the gym extra is not installed: pip install '.[test]'")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-from mitlc.errors import InputError  # noqa: E402
+from mitlc.errors import InputError, MitlError  # noqa: E402
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
 from mitlc.learn.runtime import NetRuntime  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
@@ -345,3 +345,56 @@ def test_nested_spec_observation_carries_the_obligation_clocks() -> None:
     box = MitlRewardWrapper(gym.make("Pendulum-v1"), spec, pendulum_v1_state, marking_obs="box", verdict="off")
     o, _ = box.reset(seed=1)
     assert o.shape == (3 + len(box.place_names) + 2,)
+
+
+def test_registered_environments_of_mitlc_plants() -> None:
+    """gymnasium.make("mitlc/Pendulum-v0", spec=...): the compiled reward, the spec's init, the marking."""
+    from gymnasium.utils.env_checker import check_env
+
+    import mitlc.gym as mg
+
+    assert set(mg.ENV_IDS) <= set(gym.registry)
+    env = gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid")
+    check_env(env.unwrapped, skip_render_check=True)
+    starts = []
+    for seed in range(20):
+        obs, info = env.reset(seed=seed)
+        starts.append(obs["obs"].copy())
+        assert env.observation_space.contains(obs)
+    starts_a = np.array(starts)
+    assert np.all((starts_a[:, 0] >= 2.4 - 1e-6) & (starts_a[:, 0] <= np.pi + 1e-6)) and np.all(starts_a[:, 1] == 0)
+    # the reward is the runtime's, step by step, and the episode ends at the horizon (3 s / 0.03 s)
+    base = env.unwrapped
+    obs, _ = env.reset(seed=3)
+    rt = NetRuntime(base.reward_system, dt=base.dt, steps=base.steps)
+    M = rt.reset(obs["obs"][None].astype(float))
+    k, done = 0, False
+    while not done:
+        obs, r, term, trunc, info = env.step(np.array([1.5], np.float32))
+        k += 1
+        M1 = rt.step(M, base._x, k * base.dt)
+        assert r == float(rt.reward(M, M1)[0]) and np.array_equal(info["marking"], M1[0])
+        M, done = M1, term or trunc
+    assert k == 100 and not term
+    nested = gym.make("mitlc/Pendulum-v0", spec="pendulum/n3_bounded_response", marking_obs="box")
+    check_env(nested.unwrapped, skip_render_check=True)
+    assert nested.observation_space.shape == (2 + len(nested.unwrapped.place_names) + 2,)
+    with pytest.raises(InputError, match="the spec is for plant 'pendulum', not 'mass-damper'"):
+        gym.make("mitlc/MassDamper-v0", spec="pendulum/p2_avoid")
+    from mitlc.spec.parse import parse_spec
+
+    text = "plant mass-damper\ninit q in [-1, -0.5], qdot = 0\nhorizon 3\nprop near = abs(q) < 0.1\nformula F G near\n"
+    md = gym.make("mitlc/MassDamper-v0", spec=parse_spec(text))
+    check_env(md.unwrapped, skip_render_check=True)
+    with pytest.raises(MitlError, match="no 'formula'"):  # its default spec has classical criteria only
+        gym.make("mitlc/MassDamper-v0")
+
+
+def test_registered_environment_passes_sb3s_checker() -> None:
+    sb3 = pytest.importorskip("stable_baselines3", reason="Stable-Baselines3 is an optional extra")
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    import mitlc.gym  # noqa: F401 - registers the environments
+
+    assert sb3
+    sb3_check(gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid").unwrapped)
