@@ -1,6 +1,7 @@
 """Train Stable-Baselines3's SAC on Gymnasium's Pendulum-v1 rewarded by a compiled MITL spec.
 
-Not run in CI: it needs PyTorch.  Install and run:
+It needs PyTorch (CI installs its CPU build and runs this briefly, tests/test_examples.py).
+Install and run:
 
     pip install 'mitlc[gym]' stable-baselines3
     python examples/train_sb3.py                                   # problem 1, 30k steps
