@@ -128,6 +128,18 @@ def _state_names(spec: Spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
     return tuple(columns), tuple(n for n in columns if n in used)
 
 
+def _env_dt(env: gym.Env) -> tuple[Any, str]:
+    """The environment's step in seconds, where Gymnasium's environments keep it: ``dt``
+    (MuJoCo, Pendulum-v1), ``tau`` (CartPole, Acrobot's ``dt``), or ``metadata["dt"]``."""
+    base = env.unwrapped
+    for name in ("dt", "tau"):
+        value = getattr(base, name, None)
+        if value is not None:
+            return value, f"the environment's {name}"
+    value = getattr(base, "metadata", {}).get("dt")
+    return value, "the environment's metadata['dt']"
+
+
 def _positive_dt(value: Any, where: str) -> float:
     try:
         dt = float(value)
@@ -247,11 +259,13 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             )
 
         if dt is None:
-            dt = getattr(env.unwrapped, "dt", None)
-            where = "the environment's dt"
+            dt, where = _env_dt(env)
             if dt is None:
                 if self.mitl_spec.plant is None:
-                    raise InputError("no dt: the environment has no dt attribute and the spec names no plant; pass dt=")
+                    raise InputError(
+                        "no dt: the environment has no 'dt' or 'tau' attribute and no metadata['dt'], and the spec "
+                        "names no plant; pass dt= (seconds per step)"
+                    )
                 dt, where = self.mitl_spec.param("dt"), "the plant's dt"
         else:
             where = "dt"

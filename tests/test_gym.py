@@ -398,3 +398,20 @@ def test_registered_environment_passes_sb3s_checker() -> None:
 
     assert sb3
     sb3_check(gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid").unwrapped)
+
+
+def test_dt_from_where_gymnasium_keeps_it() -> None:
+    """CartPole keeps its step as ``tau``; an env may also say ``metadata['dt']``; the error names all."""
+    spec = parse_spec("prop right = x > 0\nformula G right")
+    cart = MitlRewardWrapper(gym.make("CartPole-v1"), spec, {"x": 0})
+    assert cart.dt == 0.02
+
+    class Meta(gym.Env):
+        metadata = {"dt": 0.125}
+        observation_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    assert MitlRewardWrapper(Meta(), spec, {"x": 0}).dt == 0.125
+    with pytest.raises(InputError, match=r"no 'dt' or 'tau' attribute and no metadata\['dt'\]"):
+        MitlRewardWrapper(gym.make("MountainCarContinuous-v0"), spec, {"x": 0})
+    assert MitlRewardWrapper(gym.make("MountainCarContinuous-v0"), spec, {"x": 0}, dt=1.0).dt == 1.0
