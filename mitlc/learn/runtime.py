@@ -188,7 +188,6 @@ class NetRuntime:
 
         # timed obligation sub-nets (clock = standard with nested intervals): their tokens
         # are moved by the obligation state (one TimedState per tree), not by the tables
-        self.timed = rs.timed
         self._timed_states: list[TimedState] = []
         self.dt: float | None = None
         self.steps: int | None = None

@@ -249,24 +249,15 @@ def _constant(f: A.Formula, max_atoms: int = 12) -> bool | None:
     return bool(values[0]) if values.all() or not values.any() else None
 
 
-def _prefix(mask: np.ndarray) -> np.ndarray:
-    """Prefix counts ``c[:, i] = mask[:, :i].sum()``, ``(R, L+1)``."""
-    c = np.zeros((mask.shape[0], mask.shape[1] + 1), dtype=np.int32)
-    np.cumsum(mask, axis=1, out=c[:, 1:])
-    return c
-
-
 def _count(c: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Number of marked positions in ``[lo, hi]`` (per column, or per run and column), 0 if empty."""
+    """Number of marked positions in ``[lo, hi]`` per run and column (``hi`` per run), 0 if empty.
+
+    Windows that are the same for every run are :class:`_Windows`, computed once.
+    """
     L = c.shape[1] - 1
-    lo_c = np.clip(lo, 0, L)
-    hi_c = np.clip(hi + 1, 0, L)
-    if lo.ndim == 1 and hi.ndim == 1:
-        n = c[:, hi_c] - c[:, lo_c]
-    else:
-        lo_b = np.broadcast_to(lo_c, (c.shape[0], L))
-        hi_b = np.broadcast_to(hi_c, (c.shape[0], L))
-        n = np.take_along_axis(c, hi_b, axis=1) - np.take_along_axis(c, lo_b, axis=1)
+    lo_c = np.broadcast_to(np.clip(lo, 0, L), (c.shape[0], L))
+    hi_c = np.broadcast_to(np.clip(hi + 1, 0, L), (c.shape[0], L))
+    n = np.take_along_axis(c, hi_c, axis=1) - np.take_along_axis(c, lo_c, axis=1)
     return np.where(hi_c > lo_c, n, 0)
 
 
@@ -274,7 +265,7 @@ class _Windows:
     """Fixed windows ``[lo[s], hi[s]]`` over positions ``0..L-1``, as prefix-count indices.
 
     ``count(c)`` is the number of marked positions in each window, for prefix counts
-    ``c`` (:func:`_prefix`); an empty window counts 0.
+    ``c`` (:meth:`TimedState._prefix`); an empty window counts 0.
     """
 
     __slots__ = ("lo", "hi", "length")
@@ -374,6 +365,7 @@ class TimedState:
         self._liveness()
 
     def _prefix(self, mask: np.ndarray) -> np.ndarray:
+        """Prefix counts ``c[:, i] = mask[:, :i].sum()``, ``(R, L+1)``, in the one buffer (read before the next)."""
         np.cumsum(mask, axis=1, out=self._buf[:, 1:])
         return self._buf
 
@@ -391,10 +383,10 @@ class TimedState:
         not_true = _first_from(a != TRUE)  # the left side holds on [s, not_true)
         first_false = _first_from(a == FALSE)
         hi_t = np.minimum(hi, not_true)
-        some = _count(_prefix(b == TRUE), lo, hi_t) > 0
+        some = _count(self._prefix(b == TRUE), lo, hi_t) > 0
         hi_f = np.minimum(hi, first_false)
         length = np.maximum(hi_f - lo + 1, 0)
-        none = _count(_prefix(b == FALSE), lo, hi_f) == length
+        none = _count(self._prefix(b == FALSE), lo, hi_f) == length
         return np.where(some, TRUE, np.where(none, FALSE, PENDING)).astype(np.int8)
 
     def _liveness(self) -> None:
