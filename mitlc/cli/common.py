@@ -16,7 +16,15 @@ import click
 from mitlc.errors import InputError, MitlError
 from mitlc.fileio import atomic_write
 
-__all__ = ["handle_errors", "atomic_write", "output_option", "plant_file_option", "write_result", "PICTURES"]
+__all__ = [
+    "handle_errors",
+    "atomic_write",
+    "compile_options",
+    "output_option",
+    "plant_file_option",
+    "write_result",
+    "PICTURES",
+]
 
 PICTURES = ("svg", "png")
 """Formats that are rendered pictures (need ``-o FILE``)."""
@@ -60,6 +68,23 @@ def plant_file_option(fn: Callable[..., Any]) -> Callable[..., Any]:
         "them, or a function returning one); repeat for more. Installed packages add plants through "
         "the 'mitlc.plants' entry point. mitlc plants lists them (docs/plants.md).",
     )(fn)
+
+
+def compile_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``--conjunction``, ``--violations`` and ``--clock``: the compile options, each overriding the
+    spec's ``option`` line (``None`` when not given)."""
+    from mitlc.spec.model import OPTIONS
+
+    helps = {
+        "conjunction": "How '&' combines gated terms (overrides the spec's option).",
+        "violations": "Track violations of safety and deadline parts: a violation-aware reward (overrides the "
+        "spec's option; docs/semantics.md section 6).",
+        "clock": "standard: nested intervals count from their obligation's start (MITL); trial: every "
+        "interval on the trial clock, the thesis's reading (overrides the spec's option).",
+    }
+    for name in reversed(list(helps)):
+        fn = click.option(f"--{name}", type=click.Choice(OPTIONS[name]), default=None, help=helps[name])(fn)
+    return fn
 
 
 def output_option(fn: Callable[..., Any]) -> Callable[..., Any]:

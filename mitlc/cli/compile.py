@@ -7,8 +7,7 @@ from collections.abc import Callable
 
 import click
 
-from mitlc.cli.common import handle_errors, output_option, plant_file_option, write_result
-from mitlc.spec.model import OPTIONS
+from mitlc.cli.common import compile_options, handle_errors, output_option, plant_file_option, write_result
 
 __all__ = ["compile_cmd", "FORMATS"]
 
@@ -26,25 +25,7 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
     help="What to write: a readable summary, JSON, Graphviz DOT, a rendered picture, or PNML.",
 )
 @output_option
-@click.option(
-    "--conjunction",
-    type=click.Choice(OPTIONS["conjunction"]),
-    default=None,
-    help="How '&' combines gated terms (overrides the spec's option).",
-)
-@click.option(
-    "--violations",
-    type=click.Choice(OPTIONS["violations"]),
-    default=None,
-    help="Track violations of safety and deadline parts (overrides the spec's option).",
-)
-@click.option(
-    "--clock",
-    type=click.Choice(OPTIONS["clock"]),
-    default=None,
-    help="standard: nested intervals count from their obligation's start (MITL); trial: every "
-    "interval on the trial clock, the thesis's reading (overrides the spec's option).",
-)
+@compile_options
 @plant_file_option
 @handle_errors
 def compile_cmd(

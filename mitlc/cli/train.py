@@ -26,38 +26,32 @@ from pathlib import Path
 import click
 import numpy as np
 
-from mitlc.cli.common import atomic_write, handle_errors, plant_file_option
+from mitlc.cli.common import atomic_write, compile_options, handle_errors, plant_file_option
 from mitlc.errors import InputError, TrainingError
-from mitlc.spec.model import OPTIONS
 
-__all__ = ["train", "simulate", "find_default_spec", "SPECS_DIRS"]
+__all__ = ["train", "simulate", "find_default_spec"]
 
 PARAMS = "params.npz"
-SPECS_DIRS = (
-    Path(__file__).resolve().parents[2] / "specs",  # a source checkout
-    Path(__file__).resolve().parents[1] / "specs",  # the copy shipped inside the wheel (mitlc.specs)
-)
-"""Where a plant's ``default_spec`` (a path such as ``pendulum/p2_avoid.mitl``) is looked up."""
 
 
 def find_default_spec(plant_name: str) -> Path:
-    """The default spec of a plant, from the first of :data:`SPECS_DIRS` that has it."""
+    """The file of a plant's default spec, a shipped spec (:mod:`mitlc.spec.library`)."""
     from mitlc.plants.base import PLANTS
+    from mitlc.spec.library import find
 
     plant = PLANTS.get(plant_name)
     if plant is None:
         raise InputError(f"unknown plant '{plant_name}' (known: {', '.join(sorted(PLANTS))})", file="--plant")
     if not plant.default_spec:
         raise InputError(f"plant '{plant_name}' has no default spec: pass --spec", file="--plant")
-    for d in SPECS_DIRS:
-        p = d / plant.default_spec
-        if p.is_file():
-            return p
-    raise InputError(
-        f"default spec '{plant.default_spec}' not found in {', '.join(str(d) for d in SPECS_DIRS)}",
-        file="--spec",
-        hint="pass --spec FILE",
-    )
+    shipped = find(plant.default_spec)
+    if shipped is None:
+        raise InputError(
+            f"default spec '{plant.default_spec}' is not among the shipped specs (mitlc specs lists them)",
+            file="--spec",
+            hint="pass --spec FILE",
+        )
+    return shipped.path
 
 
 def _load(spec_path: str | None, source: str | None = None, origin: str | None = None):
@@ -203,25 +197,7 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
     default=None,
     help="Continue the training saved in this directory.",
 )
-@click.option(
-    "--conjunction",
-    type=click.Choice(OPTIONS["conjunction"]),
-    default=None,
-    help="How '&' combines gated terms (overrides the spec's option).",
-)
-@click.option(
-    "--violations",
-    type=click.Choice(OPTIONS["violations"]),
-    default=None,
-    help="Violation-aware reward (overrides the spec's option; docs/semantics.md section 6).",
-)
-@click.option(
-    "--clock",
-    type=click.Choice(OPTIONS["clock"]),
-    default=None,
-    help="standard: nested intervals count from their obligation's start (MITL); trial: the "
-    "thesis's trial clock (overrides the spec's option).",
-)
+@compile_options
 @click.option(
     "--penalty-ramp",
     type=click.FloatRange(0, 1),
@@ -435,8 +411,8 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
 
     HyRL policies (classical criteria) are judged by the checker; several of them run
     composed on --spec's combined automaton (thesis section 3-3-3)."""
-    from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
-    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.learn.policy import load_sacpn
+    from mitlc.learn.sacpn import read_meta
 
     policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
@@ -457,14 +433,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
     if len(policy_dirs) > 1:
         raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy", file="--policy")
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
-    rs = compile_spec(
-        spec,
-        CompileOptions.from_spec(
-            spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"), clock=meta.get("clock")
-        ),
-    )
-    agent = Sacpn(rs, SacpnSettings.from_dict(meta["settings"]), runs=int(meta["runs"]), seed=int(meta["seed"]))
-    agent.load(ckpt)
+    agent = load_sacpn(ckpt, meta, spec)
     n = rollouts or agent.runs
     rng = np.random.default_rng(seed)
     x0 = np.empty((n, len(agent.init_ranges)))

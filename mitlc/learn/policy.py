@@ -27,7 +27,7 @@ import numpy as np
 from mitlc.errors import InputError
 from mitlc.spec.model import Spec
 
-__all__ = ["Policy", "SacpnPolicy", "HyrlPolicy", "load_policy", "PARAMS"]
+__all__ = ["Policy", "SacpnPolicy", "HyrlPolicy", "load_policy", "load_sacpn", "PARAMS"]
 
 PARAMS = "params.npz"
 
@@ -114,6 +114,24 @@ class HyrlPolicy(Policy):
         return mode1, t1, q0
 
 
+def load_sacpn(ckpt: str | Path, meta: dict[str, Any], spec: Spec | None = None) -> Any:
+    """The :class:`~mitlc.learn.sacpn.Sacpn` a checkpoint holds (``meta``: its metadata), compiled with
+    the options it was trained with, on ``spec`` (default: the spec it was trained on)."""
+    from mitlc.learn.sacpn import Sacpn, SacpnSettings
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.spec.parse import parse_spec
+
+    if spec is None:
+        spec = parse_spec(meta["spec_source"], meta.get("spec_path") or None)
+    options = CompileOptions.from_spec(
+        spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"), clock=meta.get("clock")
+    )
+    settings = SacpnSettings.from_dict(meta["settings"])
+    agent = Sacpn(compile_spec(spec, options), settings, runs=int(meta["runs"]), seed=int(meta["seed"]))
+    agent.load(ckpt)
+    return agent
+
+
 def load_policy(directory: str | Path) -> Policy:
     """The policy ``mitlc train --out DIRECTORY`` saved (its ``params.npz``), SACPN or HyRL."""
     ckpt = Path(directory) / PARAMS
@@ -128,15 +146,4 @@ def load_policy(directory: str | Path) -> Policy:
         from mitlc.learn.hyrl import load_learner
 
         return HyrlPolicy(load_learner(ckpt))
-    from mitlc.learn.sacpn import Sacpn, SacpnSettings
-    from mitlc.petri.compile import CompileOptions, compile_spec
-    from mitlc.spec.parse import parse_spec
-
-    spec = parse_spec(meta["spec_source"], meta.get("spec_path") or None)
-    options = CompileOptions.from_spec(
-        spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"), clock=meta.get("clock")
-    )
-    settings = SacpnSettings.from_dict(meta["settings"])
-    agent = Sacpn(compile_spec(spec, options), settings, runs=int(meta["runs"]), seed=int(meta["seed"]))
-    agent.load(ckpt)
-    return SacpnPolicy(agent)
+    return SacpnPolicy(load_sacpn(ckpt, meta))

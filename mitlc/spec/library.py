@@ -29,8 +29,13 @@ class ShippedSpec:
     origin: str
     """How errors and outputs name it: ``mitlc:pendulum/p2_avoid.mitl``."""
 
+    @property
+    def path(self) -> Path:
+        """The file it is read from (in the checkout, or in the installed package)."""
+        return _root().joinpath(*f"{self.name}{SUFFIX}".split("/"))
+
     def read_text(self) -> str:
-        return _root().joinpath(*f"{self.name}{SUFFIX}".split("/")).read_text(encoding="utf-8")
+        return self.path.read_text(encoding="utf-8")
 
     def summary(self) -> str:
         """The first comment line of the spec (what it is for), or its formula."""
