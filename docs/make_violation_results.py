@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mitlc.fileio import atomic_write  # noqa: E402
+from mitlc.fileio import atomic_write, write_block  # noqa: E402
 from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 from mitlc.monitor.offline import monitor  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
@@ -238,15 +238,9 @@ def main() -> None:
     lines += ["", END]
     minutes = (time.perf_counter() - t0) / 60
     data["minutes"] = round(minutes, 1)
-    page = ROOT / "docs" / "results.md"
-    text = page.read_text(encoding="utf-8")
     block = "\n".join(lines).replace("{minutes}", f"{minutes:.1f}") + "\n"
-    if BEGIN in text:
-        text = text[: text.index(BEGIN)] + block + text[text.index(END) + len(END) + 1 :]
-    else:
-        text = text.rstrip("\n") + "\n\n" + block
     atomic_write(FIGURES / "violations.json", json.dumps(data, indent=1) + "\n")
-    atomic_write(page, text)
+    write_block(ROOT / "docs" / "results.md", BEGIN, END, block)
 
 
 if __name__ == "__main__":

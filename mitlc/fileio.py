@@ -23,7 +23,7 @@ import numpy as np
 
 from mitlc.errors import InputError
 
-__all__ = ["atomic_write", "save_npz"]
+__all__ = ["atomic_write", "save_npz", "write_block"]
 
 
 def _umask() -> int:
@@ -63,3 +63,22 @@ def save_npz(path: str | Path, arrays: Mapping[str, np.ndarray]) -> None:
     named: dict[str, Any] = dict(arrays)  # numpy's stub reads **kwargs as if they could be allow_pickle
     np.savez(buf, **named)
     atomic_write(path, buf.getvalue())
+
+
+def write_block(path: str | Path, begin: str, end: str, block: str) -> None:
+    r"""Replace the text from the line ``begin`` to the line ``end`` of a text file by ``block``
+    (which carries both markers), or append ``block`` when the file has none; atomically.
+
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "page.md"
+    >>> _ = p.write_text("# page\n\n<!-- a -->\nold\n<!-- /a -->\nrest\n")
+    >>> write_block(p, "<!-- a -->", "<!-- /a -->", "<!-- a -->\nnew\n<!-- /a -->\n")
+    >>> p.read_text()
+    '# page\n\n<!-- a -->\nnew\n<!-- /a -->\nrest\n'
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    if begin in text:
+        text = text[: text.index(begin)] + block + text[text.index(end) + len(end) + 1 :]
+    else:
+        text = text.rstrip("\n") + "\n\n" + block
+    atomic_write(path, text)
