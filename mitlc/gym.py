@@ -76,6 +76,7 @@ from mitlc.errors import InputError
 from mitlc.learn.runtime import NetRuntime
 from mitlc.petri.compile import RewardSystem, compile_spec
 from mitlc.plants.base import PLANTS, make_integrator, wrap_angle
+from mitlc.plants.gym_env import MAX_RESETS, env_dt
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
 from mitlc.spec.parse import load_spec
@@ -128,16 +129,15 @@ def _state_names(spec: Spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
     return tuple(columns), tuple(n for n in columns if n in used)
 
 
-def _env_dt(env: gym.Env) -> tuple[Any, str]:
-    """The environment's step in seconds, where Gymnasium's environments keep it: ``dt``
-    (MuJoCo, Pendulum-v1), ``tau`` (CartPole, Acrobot's ``dt``), or ``metadata["dt"]``."""
-    base = env.unwrapped
-    for name in ("dt", "tau"):
-        value = getattr(base, name, None)
-        if value is not None:
-            return value, f"the environment's {name}"
-    value = getattr(base, "metadata", {}).get("dt")
-    return value, "the environment's metadata['dt']"
+def _spec_observe(plant: Any, base: spaces.Space) -> Callable[[Any], dict[str, float]]:
+    """A gym plant's ``state`` lines as an ``observe`` function of one observation."""
+    cols = plant.observation
+
+    def observe(obs: Any) -> dict[str, float]:
+        flat = np.asarray(spaces.flatten(base, obs), dtype=float).reshape(1, -1)
+        return {o.var.name: float(np.asarray(o.read(flat)).reshape(-1)[0]) for o in cols}
+
+    return observe
 
 
 def _positive_dt(value: Any, where: str) -> float:
@@ -174,13 +174,20 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         ``obs -> {variable: value}``, or ``{variable: index or (obs -> value)}``
         with indices into the flattened observation.  Every state variable a
         proposition reads must be given; angles of the spec's plant are wrapped
-        to ``[-pi, pi)``.
+        to ``[-pi, pi)``.  Default (None): the ``state`` lines of a spec whose
+        plant is ``gym:ID``.  Such a spec's ``init`` is a condition on the
+        environment's starts: a reset outside it is redone (the environment's
+        generator goes on from ``seed``, so a seed still fixes the start).  The
+        ``init`` of a spec for another plant (``plant pendulum``) describes that
+        plant's starts and is not applied: the environment starts as it does.
     marking_obs:
         ``"dict"``: observations ``{"obs": ..., "marking": ...}``; ``"box"``: one
         flat ``Box``, the flattened observation then the marking.
     dt:
-        Seconds per step (the clock is ``tau_k = k * dt``); default the
-        environment's ``dt`` attribute, else the spec plant's ``dt``.
+        Seconds per step (the clock is ``tau_k = k * dt``); default: for a spec
+        whose plant is ``gym:ID``, that plant's ``dt`` (the spec's, else the
+        environment's); otherwise the environment's ``dt``, ``tau`` or
+        ``metadata["dt"]``, else the spec plant's ``dt``.
     verdict:
         ``"step"``: ``info["verdict"]`` after every step (the monitor re-reads
         the whole trace, so a step costs time linear in its length); ``"end"``:
@@ -193,7 +200,7 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self,
         env: gym.Env,
         spec: RewardSystem | Spec | str | os.PathLike,
-        observe: Observe,
+        observe: Observe | None = None,
         marking_obs: str = "dict",
         dt: float | None = None,
         *,
@@ -258,8 +265,11 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 dtype=dtype,
             )
 
+        spec_plant = self.mitl_spec.plant
+        if dt is None and spec_plant is not None and spec_plant.stepped:  # gym:ID: the spec's dt, else the env's
+            dt, where = self.mitl_spec.param("dt"), f"the dt of plant {spec_plant.name}"
         if dt is None:
-            dt, where = _env_dt(env)
+            dt, where = env_dt(env)
             if dt is None:
                 if self.mitl_spec.plant is None:
                     raise InputError(
@@ -284,7 +294,24 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if truncate_at_horizon and self.horizon is None:
             raise InputError("truncate_at_horizon=True but the spec has no horizon")
 
+        if observe is None:
+            plant = self.mitl_spec.plant
+            if plant is None or not plant.stepped:
+                raise InputError(
+                    "observe= is needed: how to read the spec's state variables off an observation "
+                    "(or a spec whose plant is gym:ID with 'state' lines)"
+                )
+            observe = _spec_observe(plant, base)
         self._read = self._reader(observe, base)
+        # a gym:ID spec's init is a condition on the environment's starts (a reset outside is
+        # redone); another plant's init describes that plant's starts, which an environment
+        # cannot be put in (a point such as q = pi is never drawn): the env starts as it does
+        own = spec_plant is not None and spec_plant.stepped
+        self._init = [
+            (self.state_names.index(r.var), r.lo, r.hi)
+            for r in (self.mitl_spec.init if own else ())
+            if r.var in self.state_names
+        ]
         self._periodic = np.array(
             [self.mitl_spec.plant is not None and self.mitl_spec.plant.var(n).periodic for n in self.state_names],
             dtype=bool,
@@ -391,6 +418,17 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
         x0 = self.state(obs)
+        tries = 0
+        while not self._inside_init(x0):
+            tries += 1
+            if tries > MAX_RESETS:
+                ranges = ", ".join(f"{self.state_names[i]} in [{lo:g}, {hi:g}]" for i, lo, hi in self._init)
+                raise InputError(
+                    f"the environment did not start inside the spec's init ({ranges}) in {MAX_RESETS} resets",
+                    file=self.mitl_spec.path,
+                )
+            obs, info = self.env.reset(options=options)  # the env's generator goes on from seed
+            x0 = self.state(obs)
         self._k = 0
         self._trace[0] = x0
         self._M = self.runtime.reset(x0[None, :])
@@ -399,6 +437,13 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self._verdict_mode == "step":
             self._add_verdict(info)
         return self._observation(obs), info
+
+    def _inside_init(self, x: np.ndarray) -> bool:
+        for i, lo, hi in self._init:
+            tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+            if not lo - tol <= x[i] <= hi + tol:
+                return False
+        return True
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, env_reward, terminated, truncated, info = self.env.step(action)

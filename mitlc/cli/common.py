@@ -66,7 +66,8 @@ def plant_file_option(fn: Callable[..., Any]) -> Callable[..., Any]:
         callback=_load_plant_files,
         help="Your own plant: a Python file (every Plant in it) or module:attribute (a Plant, a list of "
         "them, or a function returning one); repeat for more. Installed packages add plants through "
-        "the 'mitlc.plants' entry point. mitlc plants lists them (docs/plants.md).",
+        "the 'mitlc.plants' entry point; a spec's 'plant gym:ID' names any Gymnasium environment. "
+        "mitlc plants lists them (docs/plants.md).",
     )(fn)
 
 

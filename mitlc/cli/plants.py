@@ -15,7 +15,9 @@ __all__ = ["plants"]
 def plants() -> None:
     """List the plants a spec's 'plant NAME' line can name: mitlc's own, those of installed packages
     (entry point group 'mitlc.plants') and those of --plant-file; for each its state variables with
-    their bounds (angles wrap), its parameters with their defaults and its default spec."""
+    their bounds (angles wrap), its parameters with their defaults and its default spec. Any
+    Gymnasium environment is a plant too: 'plant gym:ID' with 'state' lines mapping its observation
+    (docs/plants.md)."""
     from mitlc.plants.base import PLANTS
     from mitlc.plants.user import discover
 
@@ -30,3 +32,8 @@ def plants() -> None:
         click.echo("  params " + ", ".join(f"{k} = {val:g}" for k, val in p.defaults.items()))
         if p.default_spec:
             click.echo(f"  default spec: {p.default_spec.removesuffix('.mitl')}")
+    click.echo(
+        "gym:ID: any Gymnasium environment with one continuous action (Box), e.g. gym:Pendulum-v1; "
+        "a spec maps its state variables to the observation, 'state q = atan2(obs[1], obs[0]), w = obs[2]' "
+        "(shipped: gym/mountain_car_reach, gym/pendulum_v1_swing_up)"
+    )

@@ -435,10 +435,13 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
     agent = load_sacpn(ckpt, meta, spec)
     n = rollouts or agent.runs
-    rng = np.random.default_rng(seed)
-    x0 = np.empty((n, len(agent.init_ranges)))
-    for i, (lo, hi) in enumerate(agent.init_ranges):
-        x0[:, i] = rng.uniform(lo, hi, n)
+    if agent.sim.settable:
+        rng = np.random.default_rng(seed)
+        x0 = np.empty((n, len(agent.init_ranges)))
+        for i, (lo, hi) in enumerate(agent.init_ranges):
+            x0[:, i] = rng.uniform(lo, hi, n)
+    else:  # a Gymnasium plant starts where its reset puts it: one seeded stream per rollout
+        x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
     ro = agent.rollout(x0)
     res = _judge(spec, ro)
     names = agent.plant.state_names

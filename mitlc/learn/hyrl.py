@@ -293,6 +293,11 @@ class HybridLearner:
         plant = spec.plant
         if plant is None:
             raise TrainingError("the spec names no plant (add 'plant mass-damper')")
+        if plant.stepped:
+            raise TrainingError(
+                f"HyRL integrates its plant from chosen states; '{plant.name}' can only be reset and stepped "
+                "(train it with SACPN: a spec with a formula)"
+            )
         self.spec, self.plant, self.settings = spec, plant, settings
         self.automaton = automaton if automaton is not None else compile_requirements(spec)
         self.runs, self.seed = int(runs), int(seed)

@@ -58,13 +58,12 @@ from pathlib import Path
 
 import numpy as np
 
-from mitlc.errors import InputError, TrainingError
+from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import save_npz
 from mitlc.learn.features import RbfFeatures
 from mitlc.learn.runtime import NetRuntime
 from mitlc.learn.settings import Settings, check_fraction, check_non_negative, json_default
 from mitlc.petri.compile import RewardSystem
-from mitlc.plants import make_integrator
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
 
@@ -207,6 +206,15 @@ class Sacpn:
         self.rs, self.spec, self.plant, self.settings = rs, spec, plant, settings
         self.runs, self.seed = int(runs), int(seed)
         self.params = plant.params({k: v for k, v in spec.plant_params})
+        if "u_max" not in self.params:
+            if plant.stepped:
+                try:
+                    plant.simulator(self.params)  # says why an environment has no input bound
+                except MitlError as exc:
+                    raise exc.located(spec.path) from None
+            raise TrainingError(
+                f"plant '{plant.name}' has no input bound u_max: SACPN drives one bounded input", file=spec.path
+            )
         if settings.dt is not None:
             self.params["dt"] = float(settings.dt)
         self.dt = float(self.params["dt"])
@@ -252,9 +260,12 @@ class Sacpn:
         bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
         self.features = RbfFeatures.for_state(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
-        self.integrate = make_integrator(plant, self.params)
         init = {r.var: (r.lo, r.hi) for r in spec.init}
         self.init_ranges = [init.get(v, (0.0, 0.0)) for v in plant.state_names]
+        # the copies the runs act on: an ODE plant integrated in place from starts in the
+        # init ranges, or a Gymnasium environment's copies reset and stepped (gym_env)
+        self.sim = plant.simulator(self.params, init)
+        self.integrate = self.sim.step
         # clock code of every step's tau_k+1 (the same for all runs: they move in lock-step)
         self._clock = [self.runtime.clock_code((k + 1) * self.dt) for k in range(self.n_steps)]
 
@@ -272,15 +283,9 @@ class Sacpn:
 
     # ------------------------------------------------------------ helpers
     def sample_init(self, rngs: list[np.random.Generator]) -> np.ndarray:
-        """One initial state per run from the spec's ``init`` ranges (others 0)."""
-        x = np.empty((len(rngs), len(self.init_ranges)))
-        for r, g in enumerate(rngs):
-            for i, (lo, hi) in enumerate(self.init_ranges):
-                x[r, i] = g.uniform(lo, hi)
-        for i, v in enumerate(self.plant.state):
-            if v.periodic:
-                x[:, i] = (x[:, i] + np.pi) % (2 * np.pi) - np.pi
-        return x
+        """One initial state per run from the spec's ``init`` ranges (others 0); for a
+        Gymnasium plant, the copies are reset (the environment's starts inside ``init``)."""
+        return self.sim.reset(rngs)
 
     def penalty_scale(self, trial: int) -> float:
         """The fraction of the violation penalty ``c`` paid in (0-based) ``trial``."""
@@ -549,6 +554,7 @@ class Sacpn:
         the exploration noise is drawn from ``rngs`` (one per row).
         """
         x = np.array(x0, dtype=float)
+        self.sim.start(x)  # a Gymnasium plant rolls out from where its last reset left it
         B, N = x.shape[0], self.n_steps
         run = np.arange(B) % self.runs
         xi = self.xi[run]

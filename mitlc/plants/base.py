@@ -19,12 +19,13 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
-__all__ = ["StateVar", "Plant", "PLANTS", "register", "wrap_angle", "make_integrator"]
+__all__ = ["StateVar", "Plant", "PLANTS", "register", "wrap_angle", "make_integrator", "Simulator", "OdeSimulator"]
 
 
 def wrap_angle(q: np.ndarray) -> np.ndarray:
@@ -66,6 +67,28 @@ class Plant:
     """Optional: builds an in-place one-step map ``step(x, u)`` that agrees with
     :meth:`step` to rounding and is faster (the pendulum's fused RK4);
     :func:`make_integrator` uses it."""
+    make_simulator: Callable[[Plant, Mapping[str, float], Mapping[str, tuple[float, float]]], Simulator] | None = None
+    """Optional: builds the :class:`Simulator` trainers reset and step, for a plant that
+    is stepped rather than integrated (a Gymnasium environment,
+    :mod:`mitlc.plants.gym_env`); None: an :class:`OdeSimulator` of :meth:`step`."""
+
+    observation: tuple = ()
+    """An environment plant's state lines (:class:`mitlc.plants.gym_env.ObsVar`: each state
+    variable read off the flattened observation); empty for an ODE plant."""
+
+    @property
+    def stepped(self) -> bool:
+        """True for a plant that cannot be set to a state (an environment), only reset and stepped."""
+        return self.make_simulator is not None
+
+    def simulator(
+        self, params: Mapping[str, float], init: Mapping[str, tuple[float, float]] | None = None
+    ) -> Simulator:
+        """``B`` copies of the plant to reset (starts drawn from ``init``) and step."""
+        init = dict(init or {})
+        if self.make_simulator is not None:
+            return self.make_simulator(self, params, init)
+        return OdeSimulator(self, params, init)
 
     @property
     def state_names(self) -> tuple[str, ...]:
@@ -125,3 +148,47 @@ def make_integrator(plant: Plant, params: Mapping[str, float]) -> Callable[[np.n
         x[...] = plant.step(x.copy(), u, p)
 
     return generic
+
+
+class Simulator(Protocol):
+    """What a trainer resets and steps: ``B`` copies of a plant in lock-step.
+
+    ``reset(rngs)`` returns one start per generator, ``(B, n)``, drawn from copy
+    ``b``'s own ``rngs[b]``; ``step(x, u)`` applies ``u (B,)`` and writes the next
+    states into ``x`` in place. ``settable`` says whether a rollout may start
+    anywhere (an ODE plant) or only where the last reset left the copies
+    (:meth:`start` checks it).
+    """
+
+    settable: bool
+
+    def reset(self, rngs: Sequence[np.random.Generator]) -> np.ndarray: ...
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> None: ...
+
+    def start(self, x0: np.ndarray) -> None: ...
+
+
+class OdeSimulator:
+    """An ODE plant's copies: starts uniform in the ``init`` ranges (0 where none is
+    given; angles wrapped), steps by :func:`make_integrator`."""
+
+    settable = True
+
+    def __init__(self, plant: Plant, params: Mapping[str, float], init: Mapping[str, tuple[float, float]]) -> None:
+        self.plant = plant
+        self.ranges = [init.get(v, (0.0, 0.0)) for v in plant.state_names]
+        self.step = make_integrator(plant, params)
+
+    def reset(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        x = np.empty((len(rngs), len(self.ranges)))
+        for r, g in enumerate(rngs):
+            for i, (lo, hi) in enumerate(self.ranges):
+                x[r, i] = g.uniform(lo, hi)
+        for i, v in enumerate(self.plant.state):
+            if v.periodic:
+                x[:, i] = (x[:, i] + np.pi) % (2 * np.pi) - np.pi
+        return x
+
+    def start(self, x0: np.ndarray) -> None:
+        """Any state will do."""

@@ -92,9 +92,13 @@ class Spec:
     path: str | None = None
     source: str | None = field(default=None, repr=False, compare=False)
     warnings: tuple[str, ...] = field(default=(), compare=False)
+    env_plant: Plant | None = field(default=None, compare=False, repr=False)
+    """The plant a ``plant gym:ID`` line and its ``state`` lines build (not in the registry)."""
 
     @property
     def plant(self) -> Plant | None:
+        if self.env_plant is not None:
+            return self.env_plant
         return PLANTS.get(self.plant_name) if self.plant_name else None
 
     @property

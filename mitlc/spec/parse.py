@@ -26,7 +26,8 @@ import lark
 from lark import Lark, Token, Transformer
 
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
-from mitlc.plants.base import PLANTS
+from mitlc.plants.base import PLANTS, Plant, StateVar
+from mitlc.plants.gym_env import GYM_PREFIX, ObsVar, env_info, gym_plant
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
@@ -73,6 +74,7 @@ RESERVED = frozenset(
         "setpoint",
         "require",
         "band",
+        "state",
     ]
 )
 
@@ -249,6 +251,19 @@ class _Build(Transformer):
             )
         return P.Call(name, tuple(_arith(a) for a in args), pos=_pos(tok))
 
+    def index(self, children: list[Any]) -> P.Pred:
+        tok, num = children
+        i = float(num)
+        if not i.is_integer() or i >= 2**31:
+            raise SpecError(f"an observation index is a whole number, got '{num}'", line=num.line, column=num.column)
+        if str(tok) != "obs":
+            raise SpecError(
+                f"'{tok}[...]': only the observation is indexed, as obs[i] in a 'state' line",
+                line=tok.line,
+                column=tok.column,
+            )
+        return P.Var(f"obs[{int(i)}]", pos=_pos(tok))
+
     def neg(self, children: list[Any]) -> P.Pred:
         (arg,) = children
         return P.Neg(_arith(arg))
@@ -289,6 +304,13 @@ class _Build(Transformer):
     def plant_def(self, children: list[Any]) -> tuple:
         tok, *params = children
         return ("plant", tok, [p for p in params if p is not None])
+
+    def state_item(self, children: list[Any]) -> tuple:
+        tok, expr, lo, hi = children
+        return (tok, _arith(expr), None if lo is None else _arith(lo), None if hi is None else _arith(hi))
+
+    def state_def(self, children: list[Any]) -> tuple:
+        return ("state", children)
 
     def init_range(self, children: list[Any]) -> tuple:
         tok, lo, hi = children
@@ -503,8 +525,15 @@ def _parse_spec(text: str, path: str | None) -> Spec:
         seen[key] = tok
 
     # Plant first: the state variables it declares are needed to check predicates.
+    env_plant = None
+    state_lines = [st for st in statements if st[0] == "state"]
     for st in statements:
-        if st[0] == "plant":
+        if st[0] == "plant" and str(st[1]).startswith(GYM_PREFIX):
+            _, tok, params = st
+            once("plant", tok)
+            plant_name = str(tok)
+            env_plant, plant_params = _env_plant(tok, params, state_lines)
+        elif st[0] == "plant":
             _, tok, params = st
             once("plant", tok)
             name = str(tok)
@@ -538,17 +567,33 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                         column=ptok.column,
                     )
                 plant_params[pname] = v
-    plant = PLANTS.get(plant_name) if plant_name else None
+    if state_lines and env_plant is None:
+        tok = state_lines[0][1][0][0]
+        raise SpecError(
+            "a 'state' line maps a Gymnasium environment's observation (plant gym:ID); "
+            + (f"plant '{plant_name}' declares its own state variables" if plant_name else "the spec names no plant"),
+            line=tok.line,
+            column=tok.column,
+        )
+    plant = env_plant if env_plant is not None else PLANTS.get(plant_name) if plant_name else None
     state_names = set(plant.state_names) if plant else None
 
     def check_vars(pred: P.Pred) -> None:
         for v in P.variables(pred):
+            pos = v.pos or A.Pos(1, 1)
+            if v.name.startswith("obs["):
+                raise SpecError(
+                    f"'{v.name}' reads the observation only in a 'state' line; name it there "
+                    "(state NAME = obs[i]) and use the name",
+                    line=pos.line,
+                    column=pos.column,
+                )
             if state_names is not None and v.name not in state_names:
-                pos = v.pos or A.Pos(1, 1)
                 raise SpecError(
                     f"unknown state variable '{v.name}' (plant '{plant_name}' has: {', '.join(plant.state_names)})",  # type: ignore[union-attr]
                     line=pos.line,
                     column=pos.column,
+                    hint=(f"map it to the observation: state {v.name} = obs[i]" if env_plant is not None else None),
                 )
 
     for st in statements:
@@ -715,7 +760,135 @@ def _parse_spec(text: str, path: str | None) -> Spec:
         path=path,
         source=text,
         warnings=tuple(warnings),
+        env_plant=env_plant,
     )
+
+
+def _columns(index: dict[str, int]) -> Any:
+    """How compile_numpy reads ``obs[i]`` off a flattened observation batch ``(B, m)``."""
+
+    def var(name: str) -> Any:
+        i = index[name]
+        return lambda flat: flat[:, i]
+
+    return var
+
+
+def _env_plant(tok: Token, params: list, state_lines: list) -> tuple[Plant, dict[str, float]]:
+    """The plant of ``plant gym:ID(...)`` and its ``state`` lines (:mod:`mitlc.plants.gym_env`)."""
+    env_id = str(tok)[len(GYM_PREFIX) :]
+    values: dict[str, float] = {}
+    for ptok, value in params:
+        pname = str(ptok)
+        if pname in values:
+            raise SpecError(f"parameter '{pname}' given twice", line=ptok.line, column=ptok.column)
+        number = _const(value, f"parameter '{pname}'", ptok)
+        if not math.isfinite(number):
+            raise SpecError(f"parameter '{pname}' must be finite", line=ptok.line, column=ptok.column)
+        values[pname] = number
+    dt_given = values.pop("dt", None)
+    try:
+        info = env_info(env_id, values)
+    except MitlError as exc:
+        raise SpecError(exc.message, line=tok.line, column=tok.column) from None
+    if dt_given is not None:
+        if not dt_given > 0:
+            raise SpecError(
+                f"parameter 'dt' must be positive, got {A.fmt_number(dt_given)}", line=tok.line, column=tok.column
+            )
+        dt = dt_given
+    elif info.dt is not None:
+        dt = info.dt
+        if not (math.isfinite(dt) and dt > 0):
+            raise SpecError(
+                f"{info.dt_where} is {dt}, not a positive time: give {tok}(dt = ...)", line=tok.line, column=tok.column
+            )
+    else:
+        raise SpecError(
+            f"'{env_id}' keeps no time step (no dt, tau or metadata['dt']): give the seconds per step, "
+            f"plant {tok}(dt = ...)",
+            line=tok.line,
+            column=tok.column,
+        )
+    if not state_lines:
+        raise SpecError(
+            f"plant '{tok}' needs its state variables mapped to the observation "
+            f"({len(info.obs_low)} entries): add a line such as 'state x = obs[0]'",
+            line=tok.line,
+            column=tok.column,
+        )
+    size = len(info.obs_low)
+    observe: list[ObsVar] = []
+    for st in state_lines:
+        for ntok, expr, lo_p, hi_p in st[1]:
+            name = str(ntok)
+            if name in RESERVED or name in P.CONSTANTS:
+                raise SpecError(
+                    f"'{name}' is a reserved word and cannot name a state variable", line=ntok.line, column=ntok.column
+                )
+            if any(o.var.name == name for o in observe):
+                raise SpecError(f"state variable '{name}' mapped twice", line=ntok.line, column=ntok.column)
+            if P.is_boolean(expr):
+                raise SpecError(
+                    f"state variable '{name}' must be a number read off the observation, not a condition",
+                    line=ntok.line,
+                    column=ntok.column,
+                )
+            index: dict[str, int] = {}
+            for v in P.variables(expr):
+                pos = v.pos or _pos(ntok)
+                if not v.name.startswith("obs["):
+                    raise SpecError(
+                        f"a 'state' line reads the observation: write obs[i] (entry i of the flattened "
+                        f"observation), not '{v.name}'",
+                        line=pos.line,
+                        column=pos.column,
+                    )
+                i = int(v.name[4:-1])
+                if i >= size:
+                    raise SpecError(
+                        f"{v.name} is outside the observation of '{env_id}' "
+                        f"({size} entries: obs[0] to obs[{size - 1}])",
+                        line=pos.line,
+                        column=pos.column,
+                    )
+                index[v.name] = i
+            if not index:
+                raise SpecError(
+                    f"state variable '{name}' reads nothing of the observation", line=ntok.line, column=ntok.column
+                )
+            angle = isinstance(expr, P.Call) and expr.fn == "atan2"
+            if lo_p is not None:
+                lo = _const(lo_p, f"lower bound of '{name}'", ntok)
+                hi = _const(hi_p, f"upper bound of '{name}'", ntok)
+            elif angle:
+                lo, hi = -math.pi, math.pi
+            elif isinstance(expr, P.Var):
+                lo, hi = float(info.obs_low[index[expr.name]]), float(info.obs_high[index[expr.name]])
+                if not (math.isfinite(lo) and math.isfinite(hi)):
+                    raise SpecError(
+                        f"{expr.name} of '{env_id}' is unbounded ([{A.fmt_number(lo)}, {A.fmt_number(hi)}]): "
+                        f"give its range, state {name} = {expr.name} in [lo, hi]",
+                        line=ntok.line,
+                        column=ntok.column,
+                    )
+            else:
+                raise SpecError(
+                    f"give the range of '{name}': state {name} = {expr} in [lo, hi]",
+                    line=ntok.line,
+                    column=ntok.column,
+                )
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise SpecError(
+                    f"the range of '{name}' must be finite with lower < upper, "
+                    f"got [{A.fmt_number(lo)}, {A.fmt_number(hi)}]",
+                    line=ntok.line,
+                    column=ntok.column,
+                )
+            read = P.compile_numpy(expr, _columns(index))
+            observe.append(ObsVar(StateVar(name, lo, hi, periodic=angle), read, str(expr)))
+    plant = gym_plant(env_id, values, observe, dt, info)
+    return plant, {**values, "dt": dt}
 
 
 def load_spec(path: str | Path) -> Spec:

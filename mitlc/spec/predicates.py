@@ -135,6 +135,7 @@ FUNCTIONS: dict[str, tuple[int, Callable[..., np.ndarray]]] = {
     "exp": (1, np.exp),
     "min": (2, np.minimum),
     "max": (2, np.maximum),
+    "atan2": (2, np.arctan2),
 }
 """Functions a predicate may call: name -> (arity, vectorised implementation)."""
 

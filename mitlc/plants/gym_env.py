@@ -1,0 +1,351 @@
+"""Gymnasium environments as plants: ``plant gym:MountainCarContinuous-v0`` in a spec.
+
+A spec names the environment's id after ``gym:`` and maps the state variables its
+propositions read to the observation, one ``state`` line each::
+
+    plant gym:MountainCarContinuous-v0(dt = 1)
+    state x = obs[0], v = obs[1]
+
+    plant gym:Pendulum-v1                 # dt = 0.05 s, the environment's
+    state q = atan2(obs[1], obs[0]), w = obs[2]
+
+``obs[i]`` is entry ``i`` of the flattened observation; a state variable is any
+arithmetic of them. Its bounds (for the compiler's interval analysis and the
+learner's features) are the observation space's for a bare ``obs[i]``,
+``[-pi, pi)`` for an ``atan2(...)`` (an angle: periodic features), else given
+with ``in [lo, hi]``. The plant's parameters are keyword arguments of
+``gymnasium.make`` (integral values as ``int``), except ``dt``, the sample time in
+seconds: the spec's, else the environment's (``dt``, ``tau`` or ``metadata["dt"]``).
+
+An environment cannot be set to a state, so a trainer does not integrate it: it
+asks the plant for a :class:`~mitlc.plants.base.Simulator` and resets and steps
+that (:class:`GymSimulator`: ``R`` copies through Gymnasium's vector API). The
+spec's ``init`` is then a condition on the environment's own reset distribution:
+a copy that starts outside it is reset again (rejection sampling). The registered
+time limit is lifted (the trial is the spec's horizon); a copy whose episode
+terminates keeps its last state to the end of the trial (MountainCar's goal is
+absorbing).
+
+Gymnasium is imported only when such a plant is used (``pip install 'mitlc[gym]'``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mitlc.errors import InputError, TrainingError
+from mitlc.plants.base import Plant, StateVar, wrap_angle
+
+__all__ = [
+    "GYM_PREFIX",
+    "ObsVar",
+    "EnvInfo",
+    "open_env",
+    "env_dt",
+    "env_info",
+    "action_bound",
+    "gym_plant",
+    "GymSimulator",
+    "MAX_RESETS",
+]
+
+GYM_PREFIX = "gym:"
+"""A plant name starting with this names a Gymnasium environment id."""
+
+MAX_RESETS = 1000
+"""Resets a copy may take to start inside the spec's ``init`` before training stops."""
+
+_NO_LIMIT = 2**62  # max_episode_steps for the trainer's copies: the trial is the spec's horizon
+
+
+@dataclass(frozen=True)
+class ObsVar:
+    """One state variable read off the flattened observation ``(B, m) -> (B,)``."""
+
+    var: StateVar
+    read: Callable[[np.ndarray], Any]
+    text: str
+    """The mapping as the spec wrote it (``obs[0]``), for listings."""
+
+
+@dataclass(frozen=True)
+class EnvInfo:
+    """What a plant needs to know of an environment, read once from a fresh instance."""
+
+    obs_low: np.ndarray
+    obs_high: np.ndarray
+    """Bounds of the flattened observation (``inf`` where unbounded)."""
+    action: str
+    """The action space, as Gymnasium prints it."""
+    u_max: float | None
+    """The input bound when the action is one symmetric continuous entry, else None."""
+    action_problem: str | None
+    """Why the action space is no input for mitlc's learners (None when it is)."""
+    dt: float | None
+    dt_where: str
+
+
+def _gymnasium() -> Any:
+    try:
+        import gymnasium
+    except ImportError:
+        raise InputError(
+            "a Gymnasium plant needs Gymnasium, an optional dependency: pip install 'mitlc[gym]'"
+        ) from None
+    return gymnasium
+
+
+def open_env(env_id: str, kwargs: Mapping[str, float] | None = None, **make: Any) -> Any:
+    """``gymnasium.make(env_id, **kwargs)``, with one clear error for an unknown id or argument."""
+    gym = _gymnasium()
+    args = {k: _make_arg(v) for k, v in (kwargs or {}).items()}
+    try:
+        return gym.make(env_id, disable_env_checker=True, **make, **args)
+    except gym.error.Error as exc:
+        raise InputError(f"Gymnasium has no environment '{env_id}' ({_first_line(exc)})") from None
+    except (TypeError, ValueError) as exc:
+        given = ", ".join(args) or "none"
+        raise InputError(
+            f"Gymnasium's '{env_id}' does not take the parameters given (given: {given}): {_first_line(exc)}"
+        ) from None
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+
+
+def _make_arg(v: float) -> float | int:
+    return int(v) if float(v).is_integer() and abs(v) < 2**53 else float(v)
+
+
+def env_dt(env: Any) -> tuple[Any, str]:
+    """The environment's step in seconds, where Gymnasium's environments keep it: ``dt``
+    (MuJoCo, Pendulum-v1), ``tau`` (CartPole), or ``metadata["dt"]``; ``(None, where)`` if none."""
+    base = env.unwrapped
+    for name in ("dt", "tau"):
+        value = getattr(base, name, None)
+        if value is not None:
+            return value, f"the environment's {name}"
+    value = (getattr(base, "metadata", None) or {}).get("dt")
+    return value, "the environment's metadata['dt']"
+
+
+def action_bound(space: Any) -> tuple[float | None, str | None]:
+    """``(u_max, None)`` for a one-entry symmetric finite ``Box``, else ``(None, why not)``."""
+    spaces = _gymnasium().spaces
+    if not isinstance(space, spaces.Box):
+        return None, (
+            f"its actions are {space}, not continuous: mitlc's learners drive one continuous input "
+            "(a Box action space with one entry); a discrete-action environment can still pay the "
+            "compiled reward to another learner through mitlc.gym.MitlRewardWrapper"
+        )
+    if int(np.prod(space.shape)) != 1:
+        return None, f"its action space {space} has {int(np.prod(space.shape))} entries; SACPN drives one input"
+    lo, hi = float(np.asarray(space.low).reshape(-1)[0]), float(np.asarray(space.high).reshape(-1)[0])
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > 0 and abs(lo + hi) <= 1e-9 * hi):
+        return None, f"its action bounds [{lo:g}, {hi:g}] are not a finite symmetric [-u_max, u_max]"
+    return hi, None
+
+
+def env_info(env_id: str, kwargs: Mapping[str, float] | None = None) -> EnvInfo:
+    """Read an environment's spaces and step once from a fresh instance (closed after)."""
+    spaces = _gymnasium().spaces
+    env = open_env(env_id, kwargs)
+    try:
+        obs_space = env.observation_space
+        try:
+            flat = spaces.flatten_space(obs_space)
+        except NotImplementedError:
+            raise InputError(f"the observation space of '{env_id}' ({obs_space}) does not flatten to numbers") from None
+        if not isinstance(flat, spaces.Box):
+            raise InputError(f"the observation space of '{env_id}' ({obs_space}) does not flatten to a Box")
+        u_max, problem = action_bound(env.action_space)
+        dt, where = env_dt(env)
+        return EnvInfo(
+            obs_low=_shortest(flat.low),
+            obs_high=_shortest(flat.high),
+            action=str(env.action_space),
+            u_max=u_max,
+            action_problem=problem,
+            dt=None if dt is None else float(dt),
+            dt_where=where,
+        )
+    finally:
+        env.close()
+
+
+def _shortest(a: Any) -> np.ndarray:
+    """Bounds as the shortest decimals of their own precision (float32's 0.6, not 0.6000000238)."""
+    arr = np.asarray(a).reshape(-1)
+    if arr.dtype.kind != "f":
+        return arr.astype(float)
+    return np.array([float(np.format_float_positional(v, unique=True, trim="-")) for v in arr])
+
+
+def gym_plant(env_id: str, kwargs: Mapping[str, float], observe: Sequence[ObsVar], dt: float, info: EnvInfo) -> Plant:
+    """The plant of a Gymnasium environment: the mapped state variables, ``dt`` and ``u_max``."""
+    defaults = {"dt": float(dt)}
+    if info.u_max is not None:
+        defaults["u_max"] = float(info.u_max)
+    make_kwargs = dict(kwargs)
+    obs = tuple(observe)
+    name = GYM_PREFIX + env_id
+
+    def no_dynamics(x: np.ndarray, u: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
+        raise TrainingError(
+            f"plant '{name}' is a Gymnasium environment: it is stepped, not integrated, and cannot be set to a "
+            "state; train it with SACPN (mitlc train) or any learner through mitlc.gym.MitlRewardWrapper"
+        )
+
+    def simulator(plant: Plant, params: Mapping[str, float], init: Mapping[str, tuple[float, float]]) -> GymSimulator:
+        if info.action_problem is not None:
+            raise TrainingError(f"cannot train on '{name}': {info.action_problem}")
+        return GymSimulator(env_id, make_kwargs, obs, init, info.u_max or 0.0)
+
+    mapping = ", ".join(f"{o.var.name} = {o.text}" for o in obs)
+    return Plant(
+        name=name,
+        state=tuple(o.var for o in obs),
+        defaults=defaults,
+        dynamics=no_dynamics,
+        description=f"Gymnasium environment {env_id} ({mapping}; actions {info.action})",
+        make_simulator=simulator,
+        observation=obs,
+    )
+
+
+class GymSimulator:
+    """``B`` copies of a Gymnasium environment behind the trainer's reset/step interface.
+
+    One synchronous vector environment per batch size (``gymnasium.make_vec``);
+    ``reset(rngs)`` seeds copy ``b`` from ``rngs[b]`` (so a run's numbers do not
+    depend on how many runs there are), rejects starts outside ``init``, and
+    returns the states; ``step(x, u)`` applies ``u`` and writes the new states into
+    ``x``, keeping a copy whose episode ended in its last state.
+    """
+
+    settable = False
+    """A state cannot be set: roll out from what :meth:`reset` returned."""
+
+    def __init__(
+        self,
+        env_id: str,
+        kwargs: Mapping[str, float],
+        observe: Sequence[ObsVar],
+        init: Mapping[str, tuple[float, float]],
+        u_max: float,
+    ) -> None:
+        self.env_id, self.kwargs, self.observe = env_id, dict(kwargs), tuple(observe)
+        self.u_max = float(u_max)
+        names = [o.var.name for o in self.observe]
+        cols = [(names.index(v), lo, hi) for v, (lo, hi) in init.items() if v in names]
+        self._init = cols
+        self._periodic = [i for i, o in enumerate(self.observe) if o.var.periodic]
+        self._envs: dict[int, Any] = {}
+        self._done: dict[int, np.ndarray] = {}
+        self.last: dict[int, np.ndarray] = {}
+        """The states the last :meth:`reset` of each batch size returned."""
+
+    def _vec(self, B: int) -> Any:
+        env = self._envs.get(B)
+        if env is None:
+            gym = _gymnasium()
+            args = {k: _make_arg(v) for k, v in self.kwargs.items()}
+            env = gym.make_vec(
+                self.env_id,
+                num_envs=B,
+                vectorization_mode="sync",
+                vector_kwargs={"copy": False},
+                max_episode_steps=_NO_LIMIT,
+                disable_env_checker=True,
+                **args,
+            )
+            self._envs[B] = env
+            self._flat_space = env.single_observation_space
+            self._box = isinstance(self._flat_space, gym.spaces.Box)
+            self._action = np.zeros((B, 1), dtype=env.single_action_space.dtype)
+        return env
+
+    def _states(self, obs: Any, B: int) -> np.ndarray:
+        if self._box:
+            flat = np.asarray(obs, dtype=float).reshape(B, -1)
+        else:
+            spaces = _gymnasium().spaces
+            vec = self._envs[B]
+            flat = np.stack(
+                [
+                    np.asarray(spaces.flatten(self._flat_space, o), dtype=float)
+                    for o in spaces.iterate(vec.observation_space, obs)
+                ]
+            )
+        x = np.empty((B, len(self.observe)))
+        with np.errstate(all="ignore"):
+            for i, o in enumerate(self.observe):
+                x[:, i] = o.read(flat)
+        for i in self._periodic:
+            x[:, i] = wrap_angle(x[:, i])
+        return x
+
+    def _outside(self, x: np.ndarray) -> np.ndarray:
+        bad = ~np.isfinite(x).all(axis=1)
+        for i, lo, hi in self._init:
+            tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+            bad |= (x[:, i] < lo - tol) | (x[:, i] > hi + tol)
+        return bad
+
+    def reset(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        B = len(rngs)
+        env = self._vec(B)
+        seeds: list[int | None] = [int(g.integers(2**31)) for g in rngs]
+        obs, _ = env.reset(seed=seeds)
+        x = self._states(obs, B)
+        bad = self._outside(x)
+        tries = 0
+        while bad.any():
+            tries += 1
+            if tries > MAX_RESETS:
+                ranges = ", ".join(f"{self.observe[i].var.name} in [{lo:g}, {hi:g}]" for i, lo, hi in self._init)
+                raise TrainingError(
+                    f"'{self.env_id}' did not start inside the spec's init ({ranges}) in {MAX_RESETS} resets",
+                    hint="a Gymnasium plant's init selects among the environment's own starts: widen it or drop it",
+                )
+            seeds = [int(g.integers(2**31)) if b else None for g, b in zip(rngs, bad, strict=True)]
+            obs, _ = env.reset(seed=seeds, options={"reset_mask": bad.copy()})
+            x[bad] = self._states(obs, B)[bad]
+            bad = self._outside(x)
+        self._done[B] = np.zeros(B, dtype=bool)
+        self.last[B] = x.copy()
+        return x
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> None:
+        B = x.shape[0]
+        env = self._envs.get(B)
+        if env is None or B not in self._done:
+            raise TrainingError(f"'{self.env_id}': step before reset (batch of {B})")
+        a = self._action
+        a[:, 0] = np.clip(u, -self.u_max, self.u_max)
+        obs, _, terminated, truncated, _ = env.step(a)
+        done = self._done[B]
+        new = self._states(obs, B)
+        live = ~done
+        x[live] = new[live]
+        done |= np.asarray(terminated, dtype=bool) | np.asarray(truncated, dtype=bool)
+
+    def start(self, x0: np.ndarray) -> None:
+        """Check that a rollout starts where the copies are (the last reset's states)."""
+        last = self.last.get(x0.shape[0])
+        if last is None or not np.array_equal(last, x0):
+            raise TrainingError(
+                f"'{self.env_id}' cannot be set to a given state: roll out from the states its reset returned "
+                "(Sacpn.evaluation_states() or Sacpn.sample_init())"
+            )
+
+    def close(self) -> None:
+        for env in self._envs.values():
+            env.close()
+        self._envs.clear()
