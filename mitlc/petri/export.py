@@ -128,6 +128,12 @@ def to_text(rs: RewardSystem) -> str:
         out.append(f"spec:        {rs.spec.path}")
     out.append(f"formula:     {rs.spec.formula}")
     out.append(f"normal form: {rs.normal_form}")
+    if rs.spec.props:
+        out.append("")
+        out.append(f"propositions ({len(rs.spec.props)}):")
+        nw = max(len(d.name) for d in rs.spec.props)
+        for d in rs.spec.props:
+            out.append(f"  {d.name:{nw}}  {d.pred}{'  (inline)' if d.inline else ''}")
     out.append("")
     out.append(f"sub-nets ({len(net.subnets)}):")
     for i, s in enumerate(net.subnets):

@@ -33,6 +33,13 @@ def _place_label(name: str, tokens: int) -> str:
     return f"{dots}" if dots else " "
 
 
+def _title(rs: RewardSystem) -> str:
+    """The formula, and under it what each inline predicate's name stands for."""
+    lines = [str(rs.spec.formula)]
+    lines += [f"{p.name}: {p.pred}" for p in rs.spec.props if p.inline]
+    return "\n".join(lines)
+
+
 def to_digraph(rs: RewardSystem, title: str | None = None) -> graphviz.Digraph:
     net = rs.net
     g = graphviz.Digraph(
@@ -40,7 +47,7 @@ def to_digraph(rs: RewardSystem, title: str | None = None) -> graphviz.Digraph:
         graph_attr={
             "rankdir": "LR",
             "fontname": "Helvetica",
-            "label": title if title is not None else str(rs.spec.formula),
+            "label": title if title is not None else _title(rs),
             "labelloc": "t",
             "fontsize": "16",
             "nodesep": "0.35",

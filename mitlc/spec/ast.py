@@ -200,11 +200,15 @@ class Const(Formula):
 
 @dataclass(frozen=True, slots=True)
 class Atom(Formula):
+    """A proposition by name; an inline predicate (``G (abs(q) < 0.3)``) also carries
+    its predicate and prints as it (the name is chosen from it: ``abs_q_lt_0p3``)."""
+
     name: str
     pos: Pos | None = field(default=None, compare=False, repr=False)
+    pred: object | None = field(default=None, compare=False, repr=False)
 
     def __str__(self) -> str:
-        return self.name
+        return self.name if self.pred is None else f"({self.pred})"
 
 
 @dataclass(frozen=True, slots=True)

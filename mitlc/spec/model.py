@@ -50,6 +50,8 @@ class PropDef:
     name: str
     pred: Pred
     pos: Pos | None = field(default=None, compare=False)
+    inline: bool = field(default=False, compare=False)
+    """Written inside the formula (``G (abs(q) < 0.3)``), named by :func:`readable_name`."""
 
 
 @dataclass(frozen=True, slots=True)

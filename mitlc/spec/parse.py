@@ -151,6 +151,11 @@ class _Build(Transformer):
         (tok,) = children
         return A.Atom(str(tok), pos=_pos(tok))
 
+    def inline_pred(self, children: list[Any]) -> A.Formula:
+        pred = self.compare(children)
+        pos = _first_pos(pred)
+        return A.Atom(P.readable_name(pred), pos=pos, pred=pred)
+
     def true_(self, children: list[Any]) -> A.Formula:
         return A.Const(True, pos=_pos(children[0]))
 
@@ -353,6 +358,21 @@ class _Build(Transformer):
         return children
 
 
+def _first_pos(p: P.Pred) -> A.Pos | None:
+    """Where a predicate starts in the text: its leftmost node that knows (else its first variable's)."""
+    node: P.Pred | None = p
+    while node is not None:
+        pos = getattr(node, "pos", None)
+        if pos is not None:
+            return pos
+        kids = node.children
+        node = kids[0] if kids else None
+    for v in P.variables(p):
+        if v.pos is not None:
+            return v.pos
+    return None
+
+
 def _arith(x: Any) -> P.Pred:
     if isinstance(x, _Bound):
         return P.Num(x.value)
@@ -431,9 +451,25 @@ def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntax
             line=tok.line,
             column=tok.column,
             source=text,
+            hint=_comparison_hint(tok, set(exc.expected)),
         )
     lines = text.splitlines() or [""]
     return SpecSyntaxError("unexpected end of input", line=len(lines), column=len(lines[-1]) + 1, source=text)
+
+
+def _comparison_hint(tok: Token, expected: set[str]) -> str | None:
+    """What to write instead, at a comparison the formula grammar does not take."""
+    if tok.type == "CMP":
+        return (
+            "a comparison in a formula compares numbers, and its left side starts with a name, a number or a "
+            "call, not '(' (which opens a formula): G (abs(q) < 0.3), 2 > (q + 1); or name it: prop kappa = ..."
+        )
+    if tok.type == "RPAR" and "CMP" in expected:
+        return (
+            "inside a formula '(' opens a formula, so a comparison cannot start with one: write q + 1 < 2 or "
+            "2 > (q + 1), or name it with 'prop NAME = ...'"
+        )
+    return None
 
 
 def _run(start: str, text: str, path: str | None) -> Any:
@@ -466,11 +502,34 @@ def _check_depth(f: A.Formula) -> None:
         )
 
 
+def _check_weights(f: A.Formula, text: str) -> None:
+    """``10 * q < 1`` reads as the weight 10 on ``q < 1``: ask for the parentheses that say so."""
+    lines = text.split("\n")
+
+    def offset(pos: A.Pos) -> int:
+        return sum(len(line) + 1 for line in lines[: pos.line - 1]) + pos.column - 1
+
+    for node in A.walk(f):
+        if not (isinstance(node, A.Weighted) and isinstance(node.child, A.Atom) and node.child.pred is not None):
+            continue
+        if node.pos is None or node.child.pos is None:
+            continue
+        if "(" not in text[offset(node.pos) : offset(node.child.pos)]:
+            w, pred = A.fmt_number(node.weight), node.child.pred
+            raise SpecError(
+                f"'{w} * {pred}' is ambiguous: write {w} * ({pred}) for a weighted proposition; a product "
+                "inside a comparison puts the number after the name (q * 2 < 1)",
+                line=node.child.pos.line,
+                column=node.child.pos.column,
+            )
+
+
 def parse_formula(text: str) -> A.Formula:
     """Parse one formula (no spec statements)."""
     f = _run("formula", text, None)
     try:
         _check_depth(f)
+        _check_weights(f, text)
     except MitlError as exc:
         raise exc.located(None, text) from None
     return f
@@ -587,6 +646,14 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                     "(state NAME = obs[i]) and use the name",
                     line=pos.line,
                     column=pos.column,
+                )
+            if v.name in props and (state_names is None or v.name not in state_names):
+                raise SpecError(
+                    f"'{v.name}' is a proposition, not a number: a comparison compares state variables",
+                    line=pos.line,
+                    column=pos.column,
+                    hint=f"to use {v.name} in a formula write it on its own (G {v.name}); a predicate is "
+                    "written as a comparison, e.g. abs(q) < 0.3",
                 )
             if state_names is not None and v.name not in state_names:
                 raise SpecError(
@@ -734,6 +801,30 @@ def _parse_spec(text: str, path: str | None) -> Spec:
     for f in (formula, check):
         if f is None:
             continue
+        _check_weights(f, text)
+        for node in A.walk(f):  # inline predicates become propositions named after their text
+            if not (isinstance(node, A.Atom) and isinstance(node.pred, P.Pred)):
+                continue
+            pos = node.pos or A.Pos(1, 1)
+            known = props.get(node.name)
+            if known is not None:
+                if str(known.pred) != str(node.pred):
+                    raise SpecError(
+                        f"the inline predicate '{node.pred}' is named '{node.name}', which a prop line defines "
+                        f"as '{known.pred}': rename that proposition",
+                        line=pos.line,
+                        column=pos.column,
+                    )
+                continue
+            deep: Any = node.pred  # A.depth walks predicate trees too
+            if _depth(deep) > MAX_DEPTH:
+                raise SpecError(
+                    f"inline predicate nested too deep (more than {MAX_DEPTH} levels)",
+                    line=pos.line,
+                    column=pos.column,
+                )
+            check_vars(node.pred)
+            props[node.name] = PropDef(node.name, node.pred, pos=pos, inline=True)
         for node in A.walk(f):
             if isinstance(node, A.Atom) and node.name not in props:
                 pos = node.pos or A.Pos(1, 1)

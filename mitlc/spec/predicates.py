@@ -53,6 +53,7 @@ __all__ = [
     "region",
     "provably_disjoint",
     "provably_empty",
+    "readable_name",
 ]
 
 
@@ -642,3 +643,48 @@ def provably_empty(p: Pred, domains: Domains | None = None) -> bool:
     """
     r = region(p, domains or {})
     return r is not None and not r
+
+
+_WORDS = {"<=": "le", ">=": "ge", "==": "eq", "!=": "ne", "<": "lt", ">": "gt", "+": "plus", "-": "minus"}
+_WORDS.update({"*": "times", "/": "over"})
+_NAME_MAX = 24
+
+
+def readable_name(p: Pred) -> str:
+    """A proposition name for an inline predicate, read off its text.
+
+    Operators become words and a decimal point ``p``; past 24 characters the
+    name keeps its first whole words and ends in four hex digits of the whole
+    text (still unique).
+
+    >>> from mitlc.spec.parse import parse_predicate
+    >>> readable_name(parse_predicate("abs(q) < 0.3"))
+    'abs_q_lt_0p3'
+    >>> readable_name(parse_predicate("x >= -0.45"))
+    'x_ge_minus_0p45'
+    >>> readable_name(parse_predicate("0.3 < q < pi/2 + 0.5"))
+    'c_0p3_lt_q_lt_pi_d095'
+    """
+    import hashlib
+    import re
+
+    text = str(p)
+    parts = []
+    for tok in re.findall(r"<=|>=|==|!=|[<>+\-*/]|[A-Za-z_][A-Za-z0-9_]*|[0-9.]+(?:e[+-]?[0-9]+)?|\[[0-9]+\]", text):
+        if tok in _WORDS:
+            parts.append(_WORDS[tok])
+        elif tok.startswith("["):
+            parts.append(tok[1:-1])
+        else:
+            parts.append(tok.replace(".", "p").replace("+", "").replace("-", "m"))
+    if not (parts[0][:1].isalpha() or parts[0][:1] == "_"):
+        parts.insert(0, "c")
+    name = "_".join(parts)
+    if len(name) > _NAME_MAX:  # whole words up to the limit, then a digest of the whole text
+        kept: list[str] = []
+        for part in parts:
+            if len("_".join([*kept, part])) > _NAME_MAX - 5:
+                break
+            kept.append(part)
+        name = "_".join(kept or [parts[0][: _NAME_MAX - 5]]) + "_" + hashlib.sha1(text.encode()).hexdigest()[:4]
+    return name
