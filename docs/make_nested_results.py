@@ -20,7 +20,6 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import math  # noqa: E402
 import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -33,6 +32,8 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from results_stats import interval  # noqa: E402  (docs/, the script's own folder)
+
 from mitlc.fileio import atomic_write, write_block  # noqa: E402
 from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 from mitlc.monitor.offline import monitor  # noqa: E402
@@ -44,7 +45,6 @@ RUNS, SEEDS = 30, (0, 1, 2)
 CLOCKS = ("standard", "trial")
 FIGURES = ROOT / "docs" / "figures"
 BEGIN, END = "<!-- nested:begin -->", "<!-- nested:end -->"
-T_975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571}  # Student's t, two-sided 95 %
 AFTER_S = 1.5  # chattering is measured after this time
 
 SPECS = [  # key, spec, trials, target, what it shows
@@ -77,14 +77,6 @@ def train(job: tuple) -> dict:
         "actions": ro.actions[:5].tolist() if seed == 0 else None,
         "dt": ro.dt,
     }
-
-
-def interval(values: list[float]) -> tuple[float, float]:
-    """Mean over seeds and the half-width of its 95 % t interval."""
-    m = float(np.mean(values))
-    if len(values) < 2:
-        return m, math.nan
-    return m, T_975[len(values) - 1] * float(np.std(values, ddof=1)) / math.sqrt(len(values))
 
 
 def main() -> None:
