@@ -48,7 +48,7 @@ TASKS = [  # spec, trials, settings (--set), what it shows
     (
         "gym/pendulum_v1_swing_up",
         1500,
-        ("gamma=0.98", "alpha_a=0.3", "sigma_frac=0.5"),
+        ("gamma=0.98", "alpha_a=0.5", "sigma_frac=0.5"),
         "Pendulum-v1 from the environment's own starts: up within 5 s and kept up, F[0,5] G up",
     ),
 ]
