@@ -1,7 +1,8 @@
 """Writing files so that nobody ever sees half of one.
 
 Every file mitlc writes goes through :func:`atomic_write`: the data goes to a
-temporary file in the same directory, which is then renamed over the target.
+temporary file in the same directory, which is then renamed over the target
+(a symlink's target, keeping its mode); devices and pipes are written directly.
 
 >>> import tempfile, pathlib, numpy as np
 >>> d = pathlib.Path(tempfile.mkdtemp())
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import io
 import os
+import stat
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -33,24 +35,47 @@ def _umask() -> int:
 
 
 def atomic_write(path: str | Path, data: bytes | str) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename.
+    """Write ``data`` to ``path`` as a shell redirection would, but never half a file.
 
-    Readers never see a half-written file, and a failed write leaves no file
-    behind. The file gets the usual permissions (0666 less the umask).
+    A regular file (or none yet) is written through a temporary file in the same
+    directory that is then renamed over it: readers never see half of it, a failed
+    write leaves the old file (or none), and a replaced file keeps its permission
+    bits (a new one gets 0666 less the umask). A symlink is followed and its target
+    replaced, so the link stays a link. A character device or a FIFO (``/dev/null``,
+    ``/dev/stdout``, a named pipe) is written directly, as ``> path`` would; any other
+    kind of file (a directory, a block device, a socket) is refused.
     """
     path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror or exc}", file=str(path)) from None
+    payload = data.encode("utf-8") if isinstance(data, str) else data
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        if stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode):
+            try:
+                with open(target, "wb") as fh:  # noqa: PTH123  (a device or a pipe: no rename)
+                    fh.write(payload)
+            except OSError as exc:
+                raise InputError(f"cannot write: {exc.strerror or exc}", file=str(path)) from None
+            return
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise InputError(f"cannot write over {kind}", file=str(path))
+    directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
         raise InputError(f"output directory does not exist: {directory}", file=str(path))
-    payload = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=directory)
+    mode = stat.S_IMODE(st.st_mode) if st is not None else 0o666 & ~_umask()
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=directory)
     try:
-        os.fchmod(fd, 0o666 & ~_umask())
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as fh:
             fh.write(payload)
             fh.flush()
             os.fsync(fh.fileno())  # the data is on disk before the name points at it
-        os.replace(tmp, path)
+        os.replace(tmp, target)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
