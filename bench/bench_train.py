@@ -5,6 +5,7 @@ actor and critic update).  Measures, in one process and on one core
 (BLAS threads pinned to 1):
 
 * the batched trainer (:meth:`mitlc.learn.sacpn.Sacpn.train`) at R = 1 and R = 30;
+* what the periodic checkpoint of ``mitlc train`` costs (``--checkpoint-every``);
 * a naive baseline: the same algorithm written plainly, a Python loop over runs
   and steps using the library's reference pieces (``Plant.step``,
   ``NetRuntime.step`` and ``.reward`` on markings, the RBF formula per state);
@@ -159,6 +160,28 @@ def main() -> None:
         f"R=30 / R=1: {rate30 / rate1:5.1f}x"
     )
     print(f"max |return difference| fast vs naive over {args.naive_trials} trials x 3 runs: {agree:.3g}")
+    checkpoint_cost(rs, rate30)
+
+
+def checkpoint_cost(rs, rate30: float) -> None:
+    """What ``mitlc train``'s periodic checkpoint (params.npz and the manifest, atomically and
+    fsync'd) costs against R = 30 training, at its default interval and if made every trial."""
+    import tempfile
+
+    from mitlc.cli.outputs import OutputSet
+
+    agent = Sacpn(rs, SacpnSettings(), runs=30, seed=0)
+    agent.train(2)
+    with tempfile.TemporaryDirectory() as tmp, OutputSet(tmp) as outset:
+        t0 = time.perf_counter()
+        for _ in range(20):
+            outset.checkpoint("params.npz", agent.to_bytes(), trial=agent.trial)
+        per = (time.perf_counter() - t0) / 20
+    trial_s = 30 * agent.n_steps / rate30
+    print(
+        f"checkpoint: {per * 1e3:.1f} ms; at the default 60 s interval {per / 60 * 100:.4f} % of training, "
+        f"after every trial {per / trial_s * 100:.1f} %"
+    )
 
 
 if __name__ == "__main__":

@@ -47,7 +47,7 @@ STAGES: dict[str, tuple[str, str]] = {
     "cli": ("argv", "files, exit code"),
 }
 """The pipeline's stages in data-flow order: stage -> (what goes in, what comes out)."""
-BASE = {"errors": "MitlError", "fileio": "atomic_write"}
+BASE = {"errors": "MitlError", "fileio": "atomic_write", "limits": "MAX_STEPS"}
 """The modules any stage may import: module -> what it offers."""
 
 Deps = dict[tuple[str, str], list[tuple[str, bool]]]

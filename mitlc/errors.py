@@ -22,6 +22,10 @@ __all__ = [
 ]
 
 
+_CONTEXT = 100
+"""Characters of the offending line shown around the column."""
+
+
 class MitlError(Exception):
     """Root of all mitlc errors a user can cause."""
 
@@ -69,11 +73,18 @@ class MitlError(Exception):
         """The offending source line with a caret under the column, or ''."""
         if self.source is None or self.line is None:
             return ""
-        lines = self.source.splitlines()
+        lines = self.source.split("\n")  # lines as the lexer counts them (not form feeds or U+2028)
         if not 1 <= self.line <= len(lines):
             return ""
-        text = lines[self.line - 1].expandtabs(1)
-        caret = " " * ((self.column or 1) - 1) + "^"
+        text = lines[self.line - 1].rstrip("\r").expandtabs(1)
+        text = "".join(ch if ch.isprintable() else " " for ch in text)  # a form feed shows as a space
+        col = (self.column or 1) - 1
+        if len(text) > _CONTEXT:  # a window around the column, marked where it cuts
+            start = max(0, min(col - _CONTEXT // 2, len(text) - _CONTEXT))
+            end = start + _CONTEXT
+            text = ("..." if start else "") + text[start:end] + ("..." if end < len(text) else "")
+            col = col - start + (3 if start else 0)
+        caret = " " * col + "^"
         return f"  {text}\n  {caret}"
 
     def render(self) -> str:

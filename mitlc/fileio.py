@@ -5,15 +5,17 @@ temporary file in the same directory, which is then renamed over the target
 (a symlink's target, keeping its mode); devices and pipes are written directly.
 
 >>> import tempfile, pathlib, numpy as np
->>> d = pathlib.Path(tempfile.mkdtemp())
+>>> tmp = tempfile.TemporaryDirectory(); d = pathlib.Path(tmp.name)
 >>> save_npz(d / "a.npz", {"x": np.arange(3)})
 >>> np.load(d / "a.npz")["x"].tolist()
 [0, 1, 2]
+>>> tmp.cleanup()
 """
 
 from __future__ import annotations
 
 import io
+import json
 import os
 import stat
 import tempfile
@@ -25,7 +27,7 @@ import numpy as np
 
 from mitlc.errors import InputError
 
-__all__ = ["atomic_write", "save_npz", "write_block"]
+__all__ = ["atomic_write", "save_npz", "write_block", "json_text", "finite_or_none", "npz_bytes"]
 
 
 def _umask() -> int:
@@ -82,12 +84,50 @@ def atomic_write(path: str | Path, data: bytes | str) -> None:
         raise
 
 
-def save_npz(path: str | Path, arrays: Mapping[str, np.ndarray]) -> None:
-    """:func:`numpy.savez` to ``path``, atomically."""
+def finite_or_none(obj: Any) -> Any:
+    """``obj`` with every non-finite float (``inf``, ``-inf``, ``nan``) as None, numpy scalars
+    and arrays as Python numbers and lists: what strict JSON can hold.
+
+    >>> finite_or_none({"a": [1.0, float("inf")], "b": np.float64("nan"), "c": np.arange(2)})
+    {'a': [1.0, None], 'b': None, 'c': [0, 1]}
+    """
+    if isinstance(obj, float | np.floating):
+        v = float(obj)
+        return v if np.isfinite(v) else None
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, np.ndarray):
+        return finite_or_none(obj.tolist())
+    if isinstance(obj, Mapping):
+        return {k: finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [finite_or_none(v) for v in obj]
+    return obj
+
+
+def json_text(obj: Any, indent: int | None = None, **kw: Any) -> str:
+    """Strict JSON of ``obj``: never ``Infinity`` or ``NaN`` (written ``null``, see
+    :func:`finite_or_none`); a trailing newline.
+
+    >>> json_text({"hi": float("inf")})
+    '{"hi": null}\\n'
+    """
+    return json.dumps(finite_or_none(obj), indent=indent, allow_nan=False, **kw) + "\n"
+
+
+def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
+    """What :func:`numpy.savez` writes for ``arrays``, in memory."""
     buf = io.BytesIO()
     named: dict[str, Any] = dict(arrays)  # numpy's stub reads **kwargs as if they could be allow_pickle
     np.savez(buf, **named)
-    atomic_write(path, buf.getvalue())
+    return buf.getvalue()
+
+
+def save_npz(path: str | Path, arrays: Mapping[str, np.ndarray]) -> None:
+    """:func:`numpy.savez` to ``path``, atomically."""
+    atomic_write(path, npz_bytes(arrays))
 
 
 def write_block(path: str | Path, begin: str, end: str, block: str) -> None:
@@ -95,11 +135,12 @@ def write_block(path: str | Path, begin: str, end: str, block: str) -> None:
     (which carries both markers), or append ``block`` when the file has none; atomically.
 
     >>> import tempfile, pathlib
-    >>> p = pathlib.Path(tempfile.mkdtemp()) / "page.md"
+    >>> tmp = tempfile.TemporaryDirectory(); p = pathlib.Path(tmp.name) / "page.md"
     >>> _ = p.write_text("# page\n\n<!-- a -->\nold\n<!-- /a -->\nrest\n")
     >>> write_block(p, "<!-- a -->", "<!-- /a -->", "<!-- a -->\nnew\n<!-- /a -->\n")
     >>> p.read_text()
     '# page\n\n<!-- a -->\nnew\n<!-- /a -->\nrest\n'
+    >>> tmp.cleanup()
     """
     text = Path(path).read_text(encoding="utf-8")
     if begin in text:

@@ -3,7 +3,7 @@
 In: a :class:`~mitlc.petri.RewardSystem` (or a :class:`~mitlc.spec.Spec`, or the path of a
 ``.mitl`` file) and a Gymnasium environment. Out: :class:`MitlRewardWrapper`, the environment
 paying the compiled reward. May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`,
-:mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.monitor`,
+:mod:`mitlc.limits`, :mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.monitor`,
 :mod:`mitlc.learn`.
 
 :class:`MitlRewardWrapper` steps the reward net (one :class:`~mitlc.learn.runtime.NetRuntime`

@@ -69,3 +69,153 @@ def test_a_replaced_regular_file_keeps_its_mode(tmp_path):
 def test_a_directory_is_refused(tmp_path):
     with pytest.raises(InputError, match="a directory"):
         atomic_write(tmp_path, "x")
+
+
+# ---------------------------------------------------------------- a training's output set
+
+import json  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from mitlc.cli.outputs import LOCK, MANIFEST, OutputSet, read_manifest  # noqa: E402
+from mitlc.learn.sacpn import Sacpn  # noqa: E402
+from mitlc.petri.compile import compile_spec  # noqa: E402
+from mitlc.spec.parse import load_spec  # noqa: E402
+
+P2 = str(ROOT / "specs/pendulum/p2_avoid.mitl")
+
+
+def _train(args, out):
+    return CliRunner().invoke(main, ["train", "--spec", P2, "--runs", "2", "-q", "--out", str(out), *args])
+
+
+def test_an_unwritable_out_fails_before_training(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    r = _train(["--trials", "5"], afile / "sub")
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert f"--out: error: cannot create the output folder {afile / 'sub'}: {afile} is a file" in r.output
+    assert afile.read_text() == "mine"
+
+
+def test_a_failed_write_after_training_keeps_the_results(tmp_path, monkeypatch):
+    import mitlc.cli.outputs as outputs
+
+    out = tmp_path / "out"
+    real = outputs.atomic_write
+
+    def full_disk(path, data):
+        if Path(path).parent == out and Path(path).name != MANIFEST:
+            raise OSError(28, "No space left on device")
+        real(path, data)
+
+    monkeypatch.setattr(outputs, "atomic_write", full_disk)
+    monkeypatch.setattr(outputs.tempfile, "gettempdir", lambda: str(tmp_path / "rescue"))
+    r = _train(["--trials", "4"], out)
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert "No space left on device" in r.output and "they are saved in" in r.output
+    (saved,) = (tmp_path / "rescue").iterdir()
+    assert f"mitlc train --resume {saved}" in r.output
+    assert json.loads((saved / "metrics.json").read_text())["trials"] == 4
+    assert read_manifest(saved)["state"] == "complete"
+    monkeypatch.setattr(outputs, "atomic_write", real)
+    r = CliRunner().invoke(main, ["train", "--resume", str(saved), "--trials", "6", "-q"])  # and it resumes
+    assert r.exit_code == 0, r.output
+    assert json.loads((saved / "metrics.json").read_text())["trials"] == 6
+
+
+def test_the_set_is_one_training_and_its_manifest_is_written_last(tmp_path):
+    out = tmp_path / "out"
+    assert _train(["--trials", "3", "--seed", "1"], out).exit_code == 0
+    first = read_manifest(out)
+    assert first["state"] == "complete" and first["seed"] == 1 and first["trial"] == 3
+    assert set(first["files"]) == {"params.npz", "metrics.json", "learning_curve.png", "rollout.png"}
+    assert _train(["--trials", "2", "--seed", "2", "--no-plots"], out).exit_code == 0
+    second = read_manifest(out)
+    assert set(second["files"]) == {"params.npz", "metrics.json"} and second["seed"] == 2
+    # the first set's pictures are gone (they were ours, listed by its manifest), nothing else is
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "metrics.json", "params.npz"]
+    import hashlib
+
+    for name, digest in second["files"].items():
+        assert hashlib.sha256((out / name).read_bytes()).hexdigest() == digest
+    assert json.loads((out / "metrics.json").read_text())["seed"] == 2
+
+
+def test_files_that_are_not_ours_are_left_alone(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert _train(["--trials", "2"], out).exit_code == 0
+    assert _train(["--trials", "2", "--no-plots"], out).exit_code == 0
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_a_second_training_into_a_locked_folder_is_refused(tmp_path):
+    out = tmp_path / "out"
+    held = OutputSet(out).open()
+    try:
+        r = _train(["--trials", "2"], out)
+        assert r.exit_code == 2 and f"is writing into {out}" in r.output
+    finally:
+        held.close()
+    (out / LOCK).write_text("999999999 " + __import__("socket").gethostname() + "\n")  # a dead process's lock
+    assert _train(["--trials", "2"], out).exit_code == 0
+    assert not (out / LOCK).exists()
+
+
+def test_checkpoints_while_training(tmp_path):
+    out = tmp_path / "out"
+    seen = []
+    real = OutputSet.checkpoint
+
+    def spy(self, name, data, **info):
+        seen.append(info["trial"])
+        real(self, name, data, **info)
+
+    import mitlc.cli.outputs as outputs
+
+    outputs.OutputSet.checkpoint = spy  # type: ignore[method-assign]
+    try:
+        assert _train(["--trials", "5", "--checkpoint-every", "0.000001"], out).exit_code == 0
+    finally:
+        outputs.OutputSet.checkpoint = real  # type: ignore[method-assign]
+    assert seen == [1, 2, 3, 4, 5]  # every trial, at this interval
+    assert _train(["--trials", "3", "--checkpoint-every", "0"], tmp_path / "none").exit_code == 0
+
+
+def test_a_diverged_run_is_marked_and_the_others_train_on():
+    rs = compile_spec(load_spec(P2))
+    healthy = Sacpn(rs, runs=3, seed=4)
+    healthy.train(6)
+    sick = Sacpn(rs, runs=3, seed=4)
+    real = sick._trial
+
+    def poisoned():
+        ret = real()
+        if sick.trial == 2:  # the third trial: run 1's critic blows up
+            sick.theta[1, 0, 0] = np.inf
+        return ret
+
+    sick._trial = poisoned  # type: ignore[method-assign]
+    returns = sick.train(6)
+    assert sick.diverged.tolist() == [-1, 3, -1]
+    assert np.isnan(returns[1, 2:]).all() and np.isfinite(returns[1, :2]).all()
+    # runs are independent: the healthy runs are exactly what they are without the sick one
+    np.testing.assert_array_equal(returns[[0, 2]], healthy.returns[[0, 2]])
+    np.testing.assert_array_equal(sick.xi[[0, 2]], healthy.xi[[0, 2]])
+    assert np.isfinite(sick.xi[1]).all() and np.isfinite(sick.theta[1]).all()  # its last finite values
+    d = sick.state_dict()
+    again = Sacpn(rs, runs=3, seed=4)
+    again.load_state_dict(d)
+    assert again.diverged.tolist() == [-1, 3, -1]
+
+
+def test_when_every_run_diverges_the_set_still_says_where(tmp_path):
+    out = tmp_path / "x"
+    r = _train(["--trials", "300", "--set", "alpha_c=10", "--set", "gamma=1", "--set", "lam=1"], out)
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert "every run diverged" in r.output and f"{out} keeps each run's last finite parameters" in r.output
+    m = json.loads((out / "metrics.json").read_text())
+    assert [d["run"] for d in m["diverged"]] == [0, 1] and all(d["trial"] > 0 for d in m["diverged"])
+    assert "NaN" not in (out / "metrics.json").read_text()  # strict JSON: a diverged return is null

@@ -135,11 +135,15 @@ def test_anti_windup_keeps_the_policy_output_near_the_bound():
     assert _max_raw_output(applied) < _max_raw_output(none)
 
 
-def test_diverging_parameters_raise_a_training_error():
+def test_a_diverged_run_is_marked_and_only_all_of_them_raise():
     a = agent(runs=2)
     a.theta[1, 0, 3] = np.nan
-    with pytest.raises(TrainingError, match="diverged"):
+    returns = a.train(2)
+    assert a.diverged.tolist() == [-1, 1] and np.isnan(returns[1]).all() and np.isfinite(returns[0]).all()
+    a.theta[0, 0, 3] = np.inf
+    with pytest.raises(TrainingError, match="every run diverged"):
         a.train(1)
+    assert a.diverged.tolist() == [3, 1] and a.trial == 2  # the failed trial is not counted
 
 
 def test_bad_settings_are_training_errors():

@@ -119,8 +119,10 @@ def test_diverging_training_is_a_clean_error(short_spec, tmp_path, monkeypatch):
     res = CliRunner().invoke(
         main, ["train", "--spec", str(short_spec), "--runs", "2", "--trials", "3", "--out", str(tmp_path / "o"), "-q"]
     )
-    assert res.exit_code == 2
-    assert "diverged" in res.output
+    assert res.exit_code == 0, res.output  # run 1 is healthy: it is kept, run 0 is marked
+    assert "1 of 2 runs diverged (NaN or inf) and kept their last finite parameters: run 0 (trial 1)" in res.output
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert metrics["diverged"] == [{"run": 0, "trial": 1}] and metrics["returns"][0] == [None, None, None]
 
 
 def test_set_overrides_any_trainer_setting_sacpn_and_hyrl(short_spec, spec_dir, tmp_path):

@@ -8,6 +8,12 @@ the click group that gathers them.
 May import: every stage.
 """
 
-from mitlc.cli.main import main
+import sys
+
+try:  # Ctrl-C while the command line loads: a clean exit 130, not a traceback
+    from mitlc.cli.main import main
+except KeyboardInterrupt:  # pragma: no cover - timing; tests/test_reliability.py sends SIGINT at start-up
+    sys.stderr.write("interrupted\n")
+    sys.exit(130)
 
 __all__ = ["main"]

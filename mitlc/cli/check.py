@@ -8,19 +8,13 @@ file, never a traceback).
 
 from __future__ import annotations
 
-import json
-import math
-
 import click
 
 from mitlc.cli.common import handle_errors, plant_file_option
 from mitlc.errors import InputError, MitlError
+from mitlc.fileio import json_text
 
 __all__ = ["check"]
-
-
-def _finite_or_none(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 def _net_view(spec, tr, dt: float) -> dict:
@@ -135,7 +129,7 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_n
             "trace": trace,
             "formula": str(formula),
             "satisfied": ok,
-            "robustness": _finite_or_none(rob),
+            "robustness": rob,  # null when infinite (no sample decides it)
             "violation_time": when,
             "failing": result.failing[0],
             "samples": int(len(tr.t)),
@@ -143,7 +137,7 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_n
         }
         if net is not None:
             out["net"] = net
-        click.echo(json.dumps(out))
+        click.echo(json_text(out), nl=False)
     else:
         click.echo(f"{trace}: {'satisfied' if ok else 'VIOLATED'}")
         click.echo(f"  formula: {formula}")

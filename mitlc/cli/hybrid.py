@@ -22,7 +22,6 @@ with policies trained separately (section 3-3-3).
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -32,7 +31,9 @@ import click
 import numpy as np
 
 from mitlc.cli.common import atomic_write, handle_errors, output_option, plant_file_option, write_result
+from mitlc.cli.outputs import OutputSet
 from mitlc.errors import InputError, TrainingError
+from mitlc.fileio import json_text
 from mitlc.spec.model import Spec
 
 __all__ = [
@@ -206,11 +207,7 @@ def train_hybrid_cli(
     Ctrl-C stops after the last complete trial, writes everything so far
     (``interrupted: true``) and exits with status 130.
     """
-    from tqdm import tqdm
-
     from mitlc.learn.hyrl import HybridLearner, HyrlSettings, load_learner
-    from mitlc.learn.hyrl_eval import evaluate
-    from mitlc.learn.plots import learning_curve, png_bytes
 
     if resume is not None:
         ckpt = Path(resume) / PARAMS
@@ -223,8 +220,20 @@ def train_hybrid_cli(
         if not s.requirements:
             raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
         learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    outset = OutputSet(out).open()  # before training: a folder that cannot be written fails now
+    try:
+        return _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots)
+    finally:
+        outset.close()
+
+
+def _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots) -> dict:
+    from tqdm import tqdm
+
+    from mitlc.learn.hyrl_eval import evaluate
+    from mitlc.learn.plots import learning_curve, png_bytes
+
+    out = outset.out
     done_before = learner.trial
     bar = tqdm(
         total=trials,
@@ -250,15 +259,14 @@ def train_hybrid_cli(
     finally:
         bar.close()
     wall = learner.wall_s  # training time, summed over resumed sessions
-    atomic_write(out / PARAMS, learner.to_bytes())
+    files: dict[str, bytes | str] = {PARAMS: learner.to_bytes()}
     name = Path(s.path or "spec").stem
     if learner.trial > 0:
         ev = evaluate(learner, n_init)
         metrics = metrics_of(learner, ev, wall)
         if plots:
-            atomic_write(
-                out / "learning_curve.png",
-                png_bytes(learning_curve(learner.returns, title=f"{name}: HyRL, {learner.runs} runs")),
+            files["learning_curve.png"] = png_bytes(
+                learning_curve(learner.returns, title=f"{name}: HyRL, {learner.runs} runs")
             )
             fig = rollout_mode_figure(
                 ev.rollout,
@@ -267,11 +275,14 @@ def train_hybrid_cli(
                 learner.u_max,
                 f"{name}: greedy policy of run 0 (background: mode)",
             )
-            atomic_write(out / "rollout.png", png_bytes(fig))
+            files["rollout.png"] = png_bytes(fig)
     else:
         metrics = {"spec": s.path, "runs": runs, "trials": 0, "wall_s": round(wall, 3), "returns": []}
     metrics["interrupted"] = interrupted
-    atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
+    files["metrics.json"] = json_text(metrics)
+    out = outset.write(
+        files, first=PARAMS, trial=learner.trial, seed=learner.seed, runs=learner.runs, wall_s=round(wall, 3)
+    )
     if interrupted:
         click.echo(
             f"interrupted after trial {learner.trial}; checkpoint in {out / PARAMS}\n"

@@ -27,7 +27,9 @@ import click
 import numpy as np
 
 from mitlc.cli.common import atomic_write, compile_options, handle_errors, plant_file_option
+from mitlc.cli.outputs import OutputSet
 from mitlc.errors import InputError, TrainingError
+from mitlc.fileio import json_text
 
 __all__ = ["train", "simulate", "find_default_spec"]
 
@@ -114,16 +116,25 @@ def _rollout_png(agent, ro, verdicts, title: str) -> bytes:
     return png_bytes(fig)
 
 
+def _mean(a: np.ndarray) -> float:
+    """The mean of the finite entries (a diverged run's returns are NaN), nan when there are none."""
+    a = np.asarray(a, dtype=float)
+    ok = np.isfinite(a)
+    return float(a[ok].mean()) if ok.any() else float("nan")
+
+
 def _judge(spec, ro):
     from mitlc.monitor.offline import monitor
 
     return monitor(spec, ro.states, ro.dt, spec.monitor_formula)
 
 
-def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plots: bool = True) -> dict:
+def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) -> tuple[dict[str, bytes | str], dict]:
+    """The output set of a training, in memory: ``{file name: content}`` and the metrics."""
     from mitlc.learn.plots import learning_curve, png_bytes
 
-    agent.save(out / PARAMS)
+    files: dict[str, bytes | str] = {PARAMS: agent.to_bytes()}
+    diverged = [{"run": int(r), "trial": int(t)} for r, t in enumerate(agent.diverged) if t >= 0]
     metrics: dict = {
         "spec": spec.path,
         "formula": str(spec.formula),
@@ -139,7 +150,8 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
         "wall_s": round(wall_s, 3),
         "run_steps": int(agent.runs * agent.trial * agent.n_steps),
         "interrupted": interrupted,
-        "returns": agent.returns.round(6).tolist(),
+        "diverged": diverged,
+        "returns": agent.returns.round(6),
     }
     if not interrupted and agent.trial > 0:
         ro = agent.rollout(agent.evaluation_states())
@@ -148,20 +160,17 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
             success_rate=float(np.mean(res.satisfied)),
             satisfied=[bool(v) for v in res.satisfied],
             robustness=[float(v) for v in res.robustness],
-            greedy_returns=ro.returns.round(6).tolist(),
+            greedy_returns=ro.returns.round(6),
         )
         if plots:
-            atomic_write(
-                out / "rollout.png",
-                _rollout_png(
-                    agent, ro, res.satisfied, f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"
-                ),
+            files["rollout.png"] = _rollout_png(
+                agent, ro, res.satisfied, f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"
             )
     if plots and agent.trial > 0:
         fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} runs")
-        atomic_write(out / "learning_curve.png", png_bytes(fig))
-    atomic_write(out / "metrics.json", json.dumps(metrics) + "\n")
-    return metrics
+        files["learning_curve.png"] = png_bytes(fig)
+    files["metrics.json"] = json_text(metrics)
+    return files, metrics
 
 
 @click.command("train")
@@ -182,7 +191,9 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
     show_default=True,
     help="Trials per run (in total, counting trials done before --resume).",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of all random numbers.")
+@click.option(
+    "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True, help="Seed of all random numbers."
+)
 @click.option(
     "--out",
     "out_dir",
@@ -229,6 +240,15 @@ def _write_outputs(out: Path, agent, spec, wall_s: float, interrupted: bool, plo
     "for a formula spec, HyrlSettings for a 'require' spec (docs/training.md, docs/hyrl.md).",
 )
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
+@click.option(
+    "--checkpoint-every",
+    type=click.FloatRange(0, 1e9),
+    default=60.0,
+    show_default=True,
+    metavar="SECONDS",
+    help="Replace the checkpoint params.npz in --out this often while training (0: only at the end), "
+    "so that a killed training resumes from it (--resume).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @plant_file_option
 @handle_errors
@@ -249,11 +269,10 @@ def train(
     saturation,
     assignments,
     no_plots,
+    checkpoint_every,
     quiet,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
-    from tqdm import tqdm
-
     from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
@@ -315,12 +334,38 @@ def train(
     wall_before = 0.0
     if meta is not None:
         agent.load(Path(resume_dir) / PARAMS)
-        try:
-            wall_before = float(json.loads((Path(resume_dir) / "metrics.json").read_text())["wall_s"])
-        except (OSError, ValueError, KeyError):
-            wall_before = 0.0
-    out.mkdir(parents=True, exist_ok=True)
+        wall_before = _wall_before(Path(resume_dir))
+    outset = OutputSet(out).open()  # before training: a folder that cannot be written fails now
+    try:
+        _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots)
+    finally:
+        outset.close()
 
+
+def _wall_before(folder: Path) -> float:
+    """Training seconds already spent on a checkpoint: its manifest's, else its metrics'."""
+    from mitlc.cli.outputs import read_manifest
+
+    manifest = read_manifest(folder) or {}
+    for source in (manifest, _read_json(folder / "metrics.json")):
+        value = source.get("wall_s")
+        if isinstance(value, int | float) and np.isfinite(value) and value >= 0:
+            return float(value)
+    return 0.0
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots) -> None:
+    from tqdm import tqdm
+
+    out = outset.out
     todo = max(0, trials - agent.trial)
     bar = tqdm(
         total=trials,
@@ -331,23 +376,48 @@ def train(
         desc=Path(spec.path or "spec").stem,
     )
 
+    start = time.perf_counter()
+    saved = [start]
+
     def progress(trial: int, returns: np.ndarray) -> None:
-        recent = agent.returns[:, -10:].mean()
+        recent = _mean(agent.returns[:, -10:])
         bar.set_postfix_str(f"mean return {recent:8.1f}", refresh=False)
         bar.update(1)
+        now = time.perf_counter()
+        if checkpoint_every and now - saved[0] >= checkpoint_every:  # kill -9 loses at most this much
+            outset.checkpoint(
+                PARAMS,
+                agent.to_bytes(),
+                trial=agent.trial,
+                seed=agent.seed,
+                runs=agent.runs,
+                wall_s=round(wall_before + now - start, 3),
+            )
+            saved[0] = time.perf_counter()
 
-    start = time.perf_counter()
     interrupted = False
+    failed: TrainingError | None = None
     try:
         agent.train(todo, progress, total=trials)
     except KeyboardInterrupt:
         interrupted = True
-    except TrainingError:
+    except TrainingError as exc:
         bar.close()
-        raise
+        if not (agent.diverged >= 0).all():
+            raise
+        failed = exc  # every run diverged: the set still records where, with their last finite parameters
     bar.close()
     wall = wall_before + time.perf_counter() - start
-    metrics = _write_outputs(out, agent, spec, wall, interrupted, plots=not no_plots)
+    try:
+        files, metrics = _outputs(agent, spec, wall, interrupted, plots=not no_plots)
+        out = outset.write(
+            files, first=PARAMS, trial=agent.trial, seed=agent.seed, runs=agent.runs, wall_s=round(wall, 3)
+        )
+    except KeyboardInterrupt:  # while writing: the checkpoint goes first, so the training resumes from it
+        outset.checkpoint(
+            PARAMS, agent.to_bytes(), trial=agent.trial, seed=agent.seed, runs=agent.runs, wall_s=round(wall, 3)
+        )
+        interrupted, out = True, outset.out
     if interrupted:
         click.echo(
             f"interrupted after trial {agent.trial}; checkpoint in {out / PARAMS}\n"
@@ -355,10 +425,24 @@ def train(
             err=True,
         )
         sys.exit(130)
+    if failed is not None:
+        raise TrainingError(
+            f"{failed.message}; {out} keeps each run's last finite parameters and where it diverged",
+            file=failed.file,
+            hint=failed.hint,
+        )
+    if metrics["diverged"]:
+        which = ", ".join(f"{d['run']} (trial {d['trial']})" for d in metrics["diverged"])
+        click.echo(
+            f"warning: {len(metrics['diverged'])} of {agent.runs} runs diverged (NaN or inf) and kept their last "
+            f"finite parameters: run {which}; the others trained on (metrics.json: diverged). Lower the learning "
+            "rates (alpha_a, alpha_c) or the exploration sigma",
+            err=True,
+        )
     rate = metrics.get("success_rate")
     click.echo(
         f"{agent.runs} runs x {agent.trial} trials in {wall:.1f} s; "
-        f"final mean return {agent.returns[:, -10:].mean():.1f}; "
+        f"final mean return {_mean(agent.returns[:, -10:]):.1f}; "
         f"success rate {rate:.2f} (monitor: {spec.monitor_formula}); results in {out}"
         if rate is not None
         else f"no trials run; results in {out}"
@@ -388,7 +472,9 @@ def train(
     default=None,
     help="Number of rollouts (default: one per trained run); rollout i uses run i mod runs.",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the initial states.")
+@click.option(
+    "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True, help="Seed of the initial states."
+)
 @click.option(
     "--plot",
     "plot_path",

@@ -5,7 +5,7 @@ time, steady-state error). Out: :class:`HybridAutomaton` (modes, guarded edges, 
 reward per mode, appendix B) from :func:`compile_requirements`, and the criteria
 checker (:mod:`mitlc.hybrid.criteria`) that measures a step response directly.
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`.
 """
 

@@ -6,7 +6,6 @@ stepping a batch of runs through it, JSON and Graphviz forms.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -14,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.errors import InputError
+from mitlc.fileio import json_text
 from mitlc.hybrid.criteria import DEFAULT_SETTLING_BAND
 from mitlc.hybrid.guards import (
     AnyOf,
@@ -298,7 +298,8 @@ class HybridAutomaton:
         }
 
     def to_json(self, indent: int = 2) -> str:
-        return json.dumps(self.to_dict(), indent=indent)
+        """Strict JSON (a non-finite number is null)."""
+        return json_text(self.to_dict(), indent=indent).rstrip("\n")
 
     def to_digraph(self, title: str | None = None):
         """A :class:`graphviz.Digraph`: modes as rounded boxes coloured as in Figure 3-7

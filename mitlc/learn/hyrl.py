@@ -47,11 +47,12 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.errors import InputError, TrainingError
+from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import atomic_write
 from mitlc.hybrid import HybridAutomaton, compile_requirements
 from mitlc.learn.features import Axis, RbfFeatures
-from mitlc.learn.settings import Settings, check_fraction, check_non_negative, json_default
+from mitlc.learn.settings import Settings, check_fraction, check_grid, check_non_negative, check_positive, json_default
+from mitlc.limits import check_steps
 from mitlc.plants.base import Plant
 from mitlc.spec.model import Spec
 
@@ -179,9 +180,11 @@ class HyrlSettings(Settings):
         check_fraction(self, ("gamma", "lam"))
         if not 0.0 < self.sigma_decay <= 1.0:
             raise TrainingError(f"sigma_decay must be in (0, 1], got {self.sigma_decay}")
-        check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma", "sigma_min", "noise_tau"))
+        check_non_negative(self, ("alpha_c", "alpha_a", "sigma", "sigma_min", "noise_tau"))
+        check_positive(self, ("rbf_width",))
         if len(self.rbf) != 3 or any(int(n) < 1 for n in self.rbf) or self.rbf_clock < 1:
             raise TrainingError(f"rbf needs three positive counts (q, qdot, q0) and rbf_clock >= 1, got {self.rbf}")
+        check_grid((*self.rbf, self.rbf_clock))
         if self.q_warp is not None and not (math.isfinite(self.q_warp) and 0.0 < self.q_warp <= 1.0):
             raise TrainingError(f"q_warp must be in (0, 1], got {self.q_warp}")
         for name in ("trial_s", "dt", "qdot_grid"):
@@ -286,6 +289,19 @@ class HybridLearner:
         seed: int = 0,
         automaton: HybridAutomaton | None = None,
     ) -> None:
+        try:
+            self._setup(spec, settings, runs, seed, automaton)
+        except MitlError as exc:  # name the spec file where the error does not name another
+            raise exc.located(spec.path) from None
+
+    def _setup(
+        self,
+        spec: Spec,
+        settings: HyrlSettings | None,
+        runs: int,
+        seed: int,
+        automaton: HybridAutomaton | None,
+    ) -> None:
         settings = settings or HyrlSettings()
         settings.check()
         if runs < 1:
@@ -307,7 +323,10 @@ class HybridLearner:
         self.dt = float(self.params["dt"])
         self.u_max = float(self.params["u_max"])
         self.trial_s = float(settings.trial_s if settings.trial_s is not None else self.automaton.horizon)
-        self.n_steps = max(1, int(round(self.trial_s / self.dt)))
+        try:
+            self.n_steps = check_steps(self.trial_s, self.dt, "a trial")
+        except ValueError as exc:
+            raise TrainingError(str(exc), file=spec.path, hint="a shorter trial_s, a larger dt") from None
         A = self.automaton
         self.time_vars = A.time_vars()
         names = ("q", "qdot", "q0") + self.time_vars
@@ -602,14 +621,10 @@ def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
 
     ``spec``: the checkpoint's spec when the caller has parsed it already (``mitlc train
     --resume`` has); used only if its text is the checkpoint's, else the text is parsed."""
+    from mitlc.learn.checkpoint import damaged, read_checkpoint
     from mitlc.spec.parse import parse_spec
 
-    try:
-        with np.load(path, allow_pickle=False) as d:
-            data = {k: d[k] for k in d.files}
-        meta = json.loads(str(data["meta"]))
-    except (OSError, KeyError, ValueError) as exc:
-        raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
+    data, meta = read_checkpoint(path)
     if meta.get("kind") != "hyrl":
         raise InputError("not a HyRL checkpoint", file=str(path))
     if spec is None or spec.source != meta["spec_source"]:
@@ -617,7 +632,12 @@ def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
     # checkpoints written before these settings existed were trained without them
     saved = {**_LEGACY_SETTINGS, **meta["settings"]}
     learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]), seed=int(meta["seed"]))
-    learner.load_state_dict(data)
+    try:
+        learner.load_state_dict(data)
+    except InputError as exc:
+        raise exc.located(str(path)) from None
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise damaged(path, exc) from None
     return learner
 
 

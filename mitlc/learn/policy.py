@@ -7,24 +7,25 @@
 >>> text = "plant pendulum(u_max = 3)\\ninit q = pi, qdot = 0\\nhorizon 3\\nprop k = abs(q) < 0.3\\n"
 >>> spec = parse_spec(text + "formula F G k")
 >>> agent = Sacpn(compile_spec(spec), runs=2, seed=1); _ = agent.train(2)
->>> d = pathlib.Path(tempfile.mkdtemp()); agent.save(d / "params.npz")
+>>> tmp = tempfile.TemporaryDirectory(); d = pathlib.Path(tmp.name); agent.save(d / "params.npz")
 >>> pol = load_policy(d)
 >>> x = np.array([[np.pi, 0.0]])
 >>> m = pol.reset(x)                 # the net's marking on x_0 (places: p_k, p_not_k)
 >>> m.tolist(), pol.act(x, m).shape  # greedy input of run 0
 ([[0, 1]], (1,))
 >>> m = pol.step(m, np.array([[3.0, -1.0]]))   # the net moves with the next state
+>>> tmp.cleanup()
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from mitlc.errors import InputError
+from mitlc.learn.checkpoint import damaged, read_meta
 from mitlc.spec.model import Spec
 
 __all__ = ["Policy", "SacpnPolicy", "HyrlPolicy", "load_policy", "load_sacpn", "PARAMS"]
@@ -126,7 +127,10 @@ def load_sacpn(ckpt: str | Path, meta: dict[str, Any], spec: Spec | None = None)
     options = CompileOptions.from_spec(
         spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"), clock=meta.get("clock")
     )
-    settings = SacpnSettings.from_dict(meta["settings"])
+    try:
+        settings = SacpnSettings.from_dict(meta["settings"])
+    except (TypeError, ValueError, KeyError) as exc:
+        raise damaged(ckpt, exc) from None
     agent = Sacpn(compile_spec(spec, options), settings, runs=int(meta["runs"]), seed=int(meta["seed"]))
     agent.load(ckpt)
     return agent
@@ -137,11 +141,7 @@ def load_policy(directory: str | Path) -> Policy:
     ckpt = Path(directory) / PARAMS
     if not ckpt.is_file():
         raise InputError(f"no {PARAMS} in {directory} (train first with 'mitlc train --out DIR')", file=str(directory))
-    try:
-        with np.load(ckpt, allow_pickle=False) as d:
-            meta = json.loads(str(d["meta"]))
-    except (OSError, KeyError, ValueError) as exc:
-        raise InputError(f"cannot read checkpoint: {exc}", file=str(ckpt)) from None
+    meta = read_meta(ckpt)
     if meta.get("kind") == "hyrl":
         from mitlc.learn.hyrl import load_learner
 

@@ -59,10 +59,20 @@ from pathlib import Path
 import numpy as np
 
 from mitlc.errors import InputError, MitlError, TrainingError
-from mitlc.fileio import save_npz
+from mitlc.fileio import npz_bytes, save_npz
+from mitlc.learn.checkpoint import damaged, read_checkpoint
+from mitlc.learn.checkpoint import read_meta as _read_meta
 from mitlc.learn.features import RbfFeatures
 from mitlc.learn.runtime import NetRuntime
-from mitlc.learn.settings import Settings, check_fraction, check_non_negative, json_default
+from mitlc.learn.settings import (
+    Settings,
+    check_fraction,
+    check_grid,
+    check_non_negative,
+    check_positive,
+    json_default,
+)
+from mitlc.limits import MAX_LEARNER_BYTES, check_steps
 from mitlc.petri.compile import RewardSystem
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
@@ -141,9 +151,19 @@ class SacpnSettings(Settings):
         if self.violation_value not in ("known", "learned"):
             raise TrainingError(f"unknown violation_value '{self.violation_value}' (known or learned)")
         check_fraction(self, ("gamma", "lam", "penalty_ramp"))
-        check_non_negative(self, ("alpha_c", "alpha_a", "rbf_width", "sigma_frac"))
-        if any(n < 1 for n in self.rbf):
-            raise TrainingError("rbf needs at least one centre per variable")
+        check_non_negative(self, ("alpha_c", "alpha_a", "sigma_frac"))
+        check_positive(self, ("rbf_width",))
+        check_grid(self.rbf)
+        seen = set()
+        for entry in self.feature_bounds:
+            if len(entry) != 3:
+                raise TrainingError(f"feature_bounds entries are (name, lo, hi), got {entry!r}")
+            name, lo, hi = entry
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise TrainingError(f"feature_bounds of '{name}' must be finite with lo < hi, got [{lo:g}, {hi:g}]")
+            if name in seen:
+                raise TrainingError(f"feature_bounds gives '{name}' twice")
+            seen.add(name)
         if self.sigma is not None and not (math.isfinite(self.sigma) and self.sigma >= 0):
             raise TrainingError(f"sigma must be a non-negative number, got {self.sigma}")
         for name in ("trial_s", "dt"):
@@ -195,6 +215,12 @@ class Sacpn:
     """
 
     def __init__(self, rs: RewardSystem, settings: SacpnSettings | None = None, runs: int = 1, seed: int = 0) -> None:
+        try:
+            self._setup(rs, settings, runs, seed)
+        except MitlError as exc:  # name the spec file where the error does not name another
+            raise exc.located(rs.spec.path) from None
+
+    def _setup(self, rs: RewardSystem, settings: SacpnSettings | None, runs: int, seed: int) -> None:
         settings = settings or SacpnSettings()
         settings.check()
         if runs < 1:
@@ -222,7 +248,10 @@ class Sacpn:
         self.sigma = float(settings.sigma) if settings.sigma is not None else settings.sigma_frac * self.u_max
         horizon = settings.trial_s if settings.trial_s is not None else (spec.horizon or 3.0)
         self.trial_s = float(horizon)
-        self.n_steps = max(1, int(round(self.trial_s / self.dt)))
+        try:
+            self.n_steps = check_steps(self.trial_s, self.dt, "a trial")
+        except ValueError as exc:
+            raise TrainingError(str(exc), file=spec.path, hint="a shorter trial_s or horizon, a larger dt") from None
         self.runtime = NetRuntime(rs, plant.state_names, dt=self.dt, steps=self.n_steps)
         if self.runtime.tables is None:
             raise TrainingError(
@@ -257,9 +286,23 @@ class Sacpn:
         self._marked_c = self._marked if self._known else tables.marked
         self.n_tokens = len(acting)
         self.n_tokens_c = self._marked_c.shape[1]
+        default_bounds = set(SacpnSettings.__dataclass_fields__["feature_bounds"].default)  # type: ignore[arg-type]
+        for entry in settings.feature_bounds:
+            if entry[0] not in plant.state_names and tuple(entry) not in default_bounds:
+                raise TrainingError(
+                    f"feature_bounds names '{entry[0]}', which plant '{plant.name}' does not have "
+                    f"(its variables: {', '.join(plant.state_names)})"
+                )
         bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
         self.features = RbfFeatures.for_state(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
+        need = 4 * self.runs * self.n_places * self.n_features * 8  # actor, critic, trace, scratch
+        if need > MAX_LEARNER_BYTES:
+            raise TrainingError(
+                f"{self.runs} runs x {self.n_places} places x {self.n_features} features need {need / 2**30:.1f} GiB "
+                f"of learner arrays, more than the {MAX_LEARNER_BYTES / 2**30:.0f} GiB supported",
+                hint="fewer runs (train them in several processes: mitlc sweep) or a coarser rbf grid",
+            )
         init = {r.var: (r.lo, r.hi) for r in spec.init}
         self.init_ranges = [init.get(v, (0.0, 0.0)) for v in plant.state_names]
         # the copies the runs act on: an ODE plant integrated in place from starts in the
@@ -275,6 +318,10 @@ class Sacpn:
         self.trial = 0
         self.ramp_trials: int | None = None  # fixed by the first train() (penalty_ramp x planned trials)
         self.returns = np.zeros((R, 0))
+        self.diverged = np.full(R, -1, dtype=np.int64)
+        """Per run: the trial (1-based) in which its parameters stopped being finite, -1 if
+        they never did. A diverged run keeps its last finite parameters (it learns no more)
+        and its returns from then on are NaN; the other runs go on."""
         children = np.random.SeedSequence(self.seed).spawn(R)
         pairs = [c.spawn(2) for c in children]
         self.rngs = [np.random.Generator(np.random.PCG64(p[0])) for p in pairs]
@@ -338,7 +385,7 @@ class Sacpn:
                     self.xi.copy(), self.theta.copy(), [g.bit_generator.state for g in self.rngs], self.trial
                 )
                 out[:, t] = self._trial()
-                self._check_finite()
+                out[self._check_finite(), t] = np.nan
                 self.trial += 1
                 done = t + 1
                 self.returns = np.concatenate([self.returns, out[:, t : t + 1]], axis=1)
@@ -359,15 +406,28 @@ class Sacpn:
             g.bit_generator.state = st
         self._snapshot = None
 
-    def _check_finite(self) -> None:
-        for name, arr in (("actor", self.xi), ("critic", self.theta)):
-            bad = ~np.isfinite(arr).reshape(self.runs, -1).all(axis=1)
-            if bad.any():
-                runs = ", ".join(str(int(i)) for i in np.flatnonzero(bad)[:10])
-                raise TrainingError(
-                    f"the {name} parameters diverged (NaN or inf) in trial {self.trial + 1}, run(s) {runs}",
-                    hint="lower the learning rates (alpha_a, alpha_c) or the exploration sigma",
-                )
+    def _check_finite(self) -> np.ndarray:
+        """The runs whose parameters are not finite after this trial, rolled back to the
+        trial's start (their last finite values) and marked in :attr:`diverged`; stop only
+        when every run has diverged."""
+        bad = np.zeros(self.runs, dtype=bool)
+        for arr in (self.xi, self.theta):
+            bad |= ~np.isfinite(arr).reshape(self.runs, -1).all(axis=1)
+        bad |= self.diverged >= 0
+        if not bad.any():
+            return bad
+        snap = self._snapshot
+        assert snap is not None  # train() takes one before every trial
+        self.xi[bad] = snap.xi[bad]
+        self.theta[bad] = snap.theta[bad]
+        self.diverged[bad & (self.diverged < 0)] = self.trial + 1
+        if bad.all():
+            raise TrainingError(
+                f"the parameters of every run diverged (NaN or inf), the last in trial {self.trial + 1}",
+                file=self.spec.path,
+                hint="lower the learning rates (alpha_a, alpha_c) or the exploration sigma",
+            )
+        return bad
 
     def _trial(self) -> np.ndarray:
         """One trial of Algorithm 1 on all runs at once; returns the undiscounted returns.
@@ -598,6 +658,7 @@ class Sacpn:
             "conjunction": self.rs.options.conjunction,
             "violations": self.rs.options.violations,
             "clock": self.rs.options.clock,
+            "diverged": self.diverged.tolist(),
         }
         return {
             "xi": self.xi,
@@ -618,6 +679,7 @@ class Sacpn:
         self.returns = np.array(d["returns"], dtype=float).reshape(self.runs, -1)
         self.trial = int(meta["trial"])
         self.ramp_trials = meta.get("ramp_trials")
+        self.diverged = np.array(meta.get("diverged", [-1] * self.runs), dtype=np.int64).reshape(self.runs)
         self.seed = int(meta["seed"])
         for g, s in zip(self.rngs, meta["rng_states"], strict=True):
             g.bit_generator.state = s
@@ -628,18 +690,20 @@ class Sacpn:
         """Write the learner's state to ``path`` (.npz) atomically."""
         save_npz(path, self.state_dict())
 
+    def to_bytes(self) -> bytes:
+        """The learner's state as the bytes of a ``.npz`` checkpoint (what :meth:`save` writes)."""
+        return npz_bytes(self.state_dict())
+
     def load(self, path: str | Path) -> None:
+        arrays, _ = read_checkpoint(path)
         try:
-            with np.load(path, allow_pickle=False) as d:
-                self.load_state_dict({k: d[k] for k in d.files})
-        except (OSError, KeyError, ValueError) as exc:
-            raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
+            self.load_state_dict(arrays)
+        except InputError as exc:
+            raise exc.located(str(path)) from None
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise damaged(path, exc) from None
 
 
 def read_meta(path: str | Path) -> dict:
-    """The metadata stored in a checkpoint (settings, runs, seed, spec text...)."""
-    try:
-        with np.load(path, allow_pickle=False) as d:
-            return json.loads(str(d["meta"]))
-    except (OSError, KeyError, ValueError) as exc:
-        raise InputError(f"cannot read checkpoint: {exc}", file=str(path)) from None
+    """The metadata stored in a checkpoint (settings, runs, seed, spec text...), checked."""
+    return _read_meta(path)

@@ -88,6 +88,28 @@ def check_non_negative(settings: Any, names: Iterable[str]) -> None:
             raise TrainingError(f"{name} must be a non-negative number, got {v}")
 
 
+def check_positive(settings: Any, names: Iterable[str]) -> None:
+    """Each named setting is a finite number > 0."""
+    for name in names:
+        v = getattr(settings, name)
+        if not (math.isfinite(v) and v > 0):
+            raise TrainingError(f"{name} must be a positive number, got {v}")
+
+
+def check_grid(counts: Iterable[int], name: str = "rbf") -> None:
+    """An RBF grid of at least one centre per axis and at most :data:`~mitlc.limits.MAX_FEATURES` in all."""
+    from mitlc.limits import MAX_FEATURES
+
+    counts = [int(n) for n in counts]
+    if any(n < 1 for n in counts):
+        raise TrainingError(f"{name} needs at least one centre per variable, got {'x'.join(map(str, counts))}")
+    total = math.prod(counts)
+    if total > MAX_FEATURES:
+        raise TrainingError(
+            f"{name} = {'x'.join(map(str, counts))} is {total:,} features, more than the {MAX_FEATURES:,} supported"
+        )
+
+
 def json_default(o: Any) -> Any:
     """``json.dumps(default=...)`` for numpy integers."""
     if isinstance(o, np.integer):

@@ -9,7 +9,7 @@ the standard finite-trace MITL semantics (docs/monitor.md), and where a trace fa
 the array kernels of :mod:`~mitlc.monitor.kernels`; :mod:`~mitlc.monitor.trace` reads
 recorded traces from files.
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`.
 """
 

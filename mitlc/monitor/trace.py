@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from mitlc.errors import InputError
+from mitlc.limits import MIN_DT
 
 __all__ = ["Trace", "read_trace", "write_trace", "UNIFORM_TOL"]
 
@@ -41,7 +42,7 @@ class Trace:
 
 def _read_csv(path: str, needed: tuple[str, ...]) -> Trace:
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
+        with open(path, newline="", encoding="utf-8-sig") as fh:  # a byte-order mark is allowed
             text = fh.read()
     except OSError as exc:
         raise InputError(f"cannot read trace: {exc.strerror}", file=path) from None
@@ -160,6 +161,8 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
         )
     n = len(t) - 1
     dt = float((t[-1] - t[0]) / n)
+    if not dt >= MIN_DT:
+        raise InputError(f"the time step {dt:g} s is below the smallest supported, {MIN_DT:g} s", file=path)
     grid = t[0] + dt * np.arange(n + 1)
     off = np.abs(t - grid) > UNIFORM_TOL * dt
     if off.any():  # small steps that drift away from the grid

@@ -12,7 +12,7 @@ The builder of :mod:`~mitlc.petri.compile` takes its sub-nets from one module pe
 :class:`~mitlc.petri.parts.Part` drafts; :mod:`~mitlc.petri.reading` holds the
 formula-level helpers.
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`.
 """
 

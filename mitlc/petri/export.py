@@ -14,13 +14,13 @@ All functions are pure: they return strings or objects and write nothing.
 
 from __future__ import annotations
 
-import json
 import math
 import xml.etree.ElementTree as ET
 from typing import Any
 
 import networkx as nx
 
+from mitlc.fileio import json_text
 from mitlc.petri import reward as R
 from mitlc.petri.compile import RewardSystem
 from mitlc.spec import ast as A
@@ -117,7 +117,8 @@ def _interval_text(i: A.Interval) -> str:
 
 
 def to_json(rs: RewardSystem) -> str:
-    return json.dumps(to_dict(rs), indent=2, ensure_ascii=False) + "\n"
+    """The net as strict JSON (docs/net.schema.json); a non-finite number would be null."""
+    return json_text(to_dict(rs), indent=2, ensure_ascii=False)
 
 
 def to_text(rs: RewardSystem) -> str:

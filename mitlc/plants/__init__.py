@@ -5,7 +5,7 @@ parameters, a batched RK4 ``step``) in the registry :data:`PLANTS`, and
 :func:`make_integrator`, the fastest in-place one-step map a plant offers (the
 pendulum's fused RK4, :mod:`mitlc.plants.pendulum`).
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`.
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`.
 
 Add a plant: a module here with its dynamics and a :func:`register` call (see
 :mod:`mitlc.plants.mass_damper`), imported below.

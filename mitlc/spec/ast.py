@@ -42,6 +42,7 @@ __all__ = [
     "walk",
     "atoms",
     "depth",
+    "nesting",
     "size",
 ]
 
@@ -112,6 +113,9 @@ TIME_TOL = 1e-9
 time is compared with an interval end."""
 
 
+_BEYOND = 2**62  # a sample offset no trace reaches
+
+
 def offsets(interval: Interval, dt: float) -> tuple[int, float]:
     """Sample offsets ``(lo, hi)`` of ``interval``: ``j`` is in it iff ``lo <= j <= hi``.
 
@@ -130,22 +134,22 @@ def offsets(interval: Interval, dt: float) -> tuple[int, float]:
     (0, inf)
     """
     lo_tol = TIME_TOL * max(1.0, abs(interval.lo))
-    if interval.lo_closed:
-        lo = math.ceil((interval.lo - lo_tol) / dt)
-    else:
-        lo = math.floor((interval.lo + lo_tol) / dt) + 1
+    q = (interval.lo - lo_tol if interval.lo_closed else interval.lo + lo_tol) / dt
+    if not q < _BEYOND:  # past any trace (1e308 s at 0.03 s): no sample offset reaches it
+        return _BEYOND, math.inf if math.isinf(interval.hi) else float(_BEYOND - 1)
+    lo = math.ceil(q) if interval.lo_closed else math.floor(q) + 1
     lo = max(lo, 0)
     if math.isinf(interval.hi):
         return lo, math.inf
     hi_tol = TIME_TOL * max(1.0, abs(interval.hi))
     if interval.hi_closed:
         x = (interval.hi + hi_tol) / dt
-        if not math.isfinite(x):
+        if not x < _BEYOND:  # past any trace: as good as unbounded
             return lo, math.inf
         hi = math.floor(x)
     else:
         x = (interval.hi - hi_tol) / dt
-        if not math.isfinite(x):
+        if not x < _BEYOND:
             return lo, math.inf
         hi = math.ceil(x) - 1
     return lo, hi
@@ -408,6 +412,33 @@ def depth(f: Formula) -> int:
         best = max(best, d)
         stack.extend((c, d + 1) for c in node.children)
     return best
+
+
+_CHAINS = frozenset({"And", "Or", "PAnd", "POr", "BinOp"})
+
+
+def nesting(tree: object) -> tuple[int, int]:
+    """``(levels, depth)`` of a formula or predicate tree.
+
+    ``levels`` counts nesting as a reader sees it: a chain of one associative
+    operator (``a & b & c``, ``x + y + z``) is one level, however many operands
+    it has; ``depth`` is the tree's own depth (what a recursive pass descends).
+    Iterative, so safe on any input.
+
+    >>> f = And(And(And(Atom("a"), Atom("b")), Atom("c")), Not(Atom("d")))
+    >>> nesting(f), depth(f)
+    ((3, 4), 4)
+    """
+    best_levels = best_depth = 0
+    stack: list[tuple[object, int, int]] = [(tree, 1, 1)]
+    while stack:
+        node, levels, d = stack.pop()
+        best_levels, best_depth = max(best_levels, levels), max(best_depth, d)
+        kind, op = type(node).__name__, getattr(node, "op", None)
+        for c in node.children:  # type: ignore[attr-defined]
+            same = kind in _CHAINS and type(c) is type(node) and getattr(c, "op", None) == op
+            stack.append((c, levels if same else levels + 1, d + 1))
+    return best_levels, best_depth
 
 
 def size(f: Formula) -> int:

@@ -26,16 +26,22 @@ import lark
 from lark import Lark, Token, Transformer
 
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
+from mitlc.limits import MAX_SPEC_BYTES, MAX_TIME
 from mitlc.plants.base import PLANTS, Plant, StateVar
 from mitlc.plants.gym_env import GYM_PREFIX, ObsVar, env_info, gym_plant
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
 
-__all__ = ["parse_spec", "load_spec", "parse_formula", "parse_predicate", "MAX_DEPTH", "RESERVED"]
+__all__ = ["parse_spec", "load_spec", "parse_formula", "parse_predicate", "MAX_DEPTH", "MAX_TREE", "RESERVED"]
 
 MAX_DEPTH = 64
-"""Deepest formula or predicate nesting accepted."""
+"""Deepest formula or predicate nesting accepted, in levels: a chain of one associative
+operator (``a & b & c``) is one level (:func:`mitlc.spec.ast.nesting`)."""
+
+MAX_TREE = 256
+"""Deepest syntax tree accepted, counting each operand of a chain: what keeps every
+recursive pass of the compiler, monitor and exports far from Python's stack limit."""
 
 RESERVED = frozenset(
     [
@@ -330,10 +336,10 @@ class _Build(Transformer):
         return ("init", children)
 
     def horizon_def(self, children: list[Any]) -> tuple:
-        return ("horizon", _arith(children[0]))
+        return ("horizon", _arith(children[1]), children[0])
 
     def setpoint_def(self, children: list[Any]) -> tuple:
-        return ("setpoint", _arith(children[0]))
+        return ("setpoint", _arith(children[1]), children[0])
 
     def require_bound(self, children: list[Any]) -> tuple:
         tok, cmp, value, band = children
@@ -489,14 +495,25 @@ def _run(start: str, text: str, path: str | None) -> Any:
 # -------------------------------------------------------------- checks
 
 
-_depth = A.depth  # iterative: safe on the deepest input
+def _too_deep(tree: Any, what: str) -> str | None:
+    """Why ``tree`` is refused for its shape (:data:`MAX_DEPTH`, :data:`MAX_TREE`), or None."""
+    levels, depth = A.nesting(tree)  # iterative: safe on the deepest input
+    if levels > MAX_DEPTH:
+        return f"{what} nesting too deep (more than {MAX_DEPTH} levels)"
+    if depth > MAX_TREE:
+        return (
+            f"{what} too long: its tree is more than {MAX_TREE} operators deep (a chain such as a & b & ... "
+            "counts one per operand); split it into propositions or shorter parts"
+        )
+    return None
 
 
 def _check_depth(f: A.Formula) -> None:
-    if _depth(f) > MAX_DEPTH:
+    problem = _too_deep(f, "formula")
+    if problem is not None:
         pos = getattr(f, "pos", None)
         raise SpecError(
-            f"formula nesting too deep (more than {MAX_DEPTH} levels)",
+            problem,
             line=pos.line if pos else None,
             column=pos.column if pos else None,
         )
@@ -509,15 +526,29 @@ def _check_weights(f: A.Formula, text: str) -> None:
     def offset(pos: A.Pos) -> int:
         return sum(len(line) + 1 for line in lines[: pos.line - 1]) + pos.column - 1
 
+    stack: list[tuple[A.Formula, float]] = [(f, 1.0)]  # the product of the weights above each node
+    while stack:
+        node, w = stack.pop()
+        if isinstance(node, A.Weighted):
+            w *= node.weight
+            if not math.isfinite(w):
+                pos = node.pos or A.Pos(1, 1)
+                raise SpecError(
+                    f"the weights multiply to more than the largest number ({A.fmt_number(node.weight)} * ...): "
+                    "a reward that large is infinite",
+                    line=pos.line,
+                    column=pos.column,
+                )
+        stack.extend((c, w) for c in node.children)
     for node in A.walk(f):
         if not (isinstance(node, A.Weighted) and isinstance(node.child, A.Atom) and node.child.pred is not None):
             continue
         if node.pos is None or node.child.pos is None:
             continue
         if "(" not in text[offset(node.pos) : offset(node.child.pos)]:
-            w, pred = A.fmt_number(node.weight), node.child.pred
+            wt, pred = A.fmt_number(node.weight), node.child.pred
             raise SpecError(
-                f"'{w} * {pred}' is ambiguous: write {w} * ({pred}) for a weighted proposition; a product "
+                f"'{wt} * {pred}' is ambiguous: write {wt} * ({pred}) for a weighted proposition; a product "
                 "inside a comparison puts the number after the name (q * 2 < 1)",
                 line=node.child.pos.line,
                 column=node.child.pos.column,
@@ -541,6 +572,9 @@ def parse_predicate(text: str) -> P.Pred:
 
 
 def _const(p: P.Pred, what: str, pos: Token) -> float:
+    problem = _too_deep(p, f"{what}:")
+    if problem is not None:
+        raise SpecError(problem, line=pos.line, column=pos.column)
     if P.is_boolean(p):
         raise SpecError(f"{what} must be a number, not a condition", line=pos.line, column=pos.column)
     names = P.variables(p)
@@ -611,6 +645,8 @@ def _parse_spec(text: str, path: str | None) -> Spec:
             plant_name = name
             for ptok, value in params:
                 pname = str(ptok)
+                if pname in plant_params:
+                    raise SpecError(f"parameter '{pname}' given twice", line=ptok.line, column=ptok.column)
                 if pname not in PLANTS[name].defaults:
                     raise SpecError(
                         f"plant '{name}' has no parameter '{pname}' "
@@ -687,9 +723,10 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                     line=tok.line,
                     column=tok.column,
                 )
-            if _depth(pred) > MAX_DEPTH:
+            problem = _too_deep(pred, f"predicate of '{name}':")
+            if problem is not None:
                 raise SpecError(
-                    f"predicate of '{name}' nested too deep (more than {MAX_DEPTH} levels)",
+                    problem,
                     line=tok.line,
                     column=tok.column,
                 )
@@ -722,8 +759,13 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                     raise SpecError(f"initial range of '{var}' given twice", line=tok.line, column=tok.column)
                 lo = _const(lo_p, f"initial bound of '{var}'", tok)
                 hi = _const(hi_p, f"initial bound of '{var}'", tok)
-                if not (math.isfinite(lo) and math.isfinite(hi)):
-                    raise SpecError(f"initial range of '{var}' must be finite", line=tok.line, column=tok.column)
+                if not (math.isfinite(lo) and math.isfinite(hi) and math.isfinite(hi - lo)):
+                    raise SpecError(
+                        f"initial range of '{var}' must be finite (and its width too), got "
+                        f"[{A.fmt_number(lo)}, {A.fmt_number(hi)}]",
+                        line=tok.line,
+                        column=tok.column,
+                    )
                 if lo > hi:
                     raise SpecError(
                         f"inverted initial range of '{var}': [{A.fmt_number(lo)}, {A.fmt_number(hi)}]",
@@ -732,21 +774,26 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                     )
                 init[var] = InitRange(var, lo, hi)
         elif kind == "horizon":
-            value = st[1]
-            tok = Token("HORIZON", "horizon", line=1, column=1)
+            _, value, tok = st
             h = _const(value, "horizon", tok)
             if not (math.isfinite(h) and h > 0):
-                raise SpecError(f"horizon must be positive and finite, got {A.fmt_number(h)}")
-            if horizon is not None:
-                raise SpecError("'horizon' given twice")
+                raise SpecError(
+                    f"horizon must be positive and finite, got {A.fmt_number(h)}", line=tok.line, column=tok.column
+                )
+            if h > MAX_TIME:
+                raise SpecError(
+                    f"horizon {A.fmt_number(h)} s is longer than the longest supported, {A.fmt_number(MAX_TIME)} s",
+                    line=tok.line,
+                    column=tok.column,
+                )
+            once("horizon", tok)
             horizon = h
         elif kind == "setpoint":
-            tok = Token("SETPOINT", "setpoint", line=1, column=1)
-            if setpoint is not None:
-                raise SpecError("'setpoint' given twice")
-            setpoint = _const(st[1], "setpoint", tok)
+            _, value, tok = st
+            once("setpoint", tok)
+            setpoint = _const(value, "setpoint", tok)
             if not math.isfinite(setpoint):
-                raise SpecError("setpoint must be finite")
+                raise SpecError("setpoint must be finite", line=tok.line, column=tok.column)
         elif kind == "require":
             _, tok, lo_p, hi_p, band_p = st
             name = str(tok)
@@ -816,10 +863,10 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                         column=pos.column,
                     )
                 continue
-            deep: Any = node.pred  # A.depth walks predicate trees too
-            if _depth(deep) > MAX_DEPTH:
+            problem = _too_deep(node.pred, "inline predicate:")
+            if problem is not None:
                 raise SpecError(
-                    f"inline predicate nested too deep (more than {MAX_DEPTH} levels)",
+                    problem,
                     line=pos.line,
                     column=pos.column,
                 )
@@ -994,12 +1041,20 @@ def load_spec(path: str | Path) -> Spec:
     if not p.exists() and (shipped := library.find(str(path))) is not None:
         return parse_spec(shipped.read_text(), shipped.origin)
     try:
-        text = p.read_text(encoding="utf-8")
+        if p.exists() and not p.is_file():  # a directory, a device (/dev/zero), a FIFO: not a spec
+            kind = "a directory" if p.is_dir() else "not a regular file"
+            raise SpecError(f"cannot read spec: {kind}", file=str(path))
+        with p.open("rb") as fh:
+            raw = fh.read(MAX_SPEC_BYTES + 1)
     except OSError as exc:
         hint = None
         if not p.exists():
             hint = "no file of that name, and no shipped spec either (mitlc specs lists them, e.g. pendulum/p2_avoid)"
-        raise SpecError(f"cannot read spec: {exc.strerror}", file=str(path), hint=hint) from None
-    except UnicodeDecodeError:
-        raise SpecError("spec is not UTF-8 text", file=str(path)) from None
+        raise SpecError(f"cannot read spec: {exc.strerror or exc}", file=str(path), hint=hint) from None
+    if len(raw) > MAX_SPEC_BYTES:
+        raise SpecError(f"spec is larger than {MAX_SPEC_BYTES >> 10} KiB, the most a spec may be", file=str(path))
+    try:
+        text = raw.decode("utf-8-sig")  # a byte-order mark at the start is allowed
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"spec is not UTF-8 text (byte {exc.start})", file=str(path)) from None
     return parse_spec(text, str(path))

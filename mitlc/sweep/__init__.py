@@ -4,7 +4,7 @@ In: a :class:`mitlc.spec.Spec`, grid axes (``NAME=V1,V2``), seeds. Out: one reco
 task in a :class:`ResultStore` (``results.json``, ``results.csv``), summaries and a
 heat map.
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.plants`,
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.hybrid`, :mod:`mitlc.monitor`,
 :mod:`mitlc.learn`.
 

@@ -8,6 +8,7 @@ exception)]``: :class:`Backend`.
 from __future__ import annotations
 
 import os
+import time
 from collections import Counter, deque
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, Protocol
@@ -84,7 +85,9 @@ class LocalBackend:
         try:
             while queue or running:
                 if pool is None:
-                    pool = ProcessPoolExecutor(self.workers, mp_context=ctx)
+                    pool = ProcessPoolExecutor(
+                        self.workers, mp_context=ctx, initializer=watch_parent, initargs=(os.getpid(),)
+                    )
                 broken = False
                 while queue and len(running) < self.workers and not broken:
                     p = queue.popleft()
@@ -130,6 +133,21 @@ class LocalBackend:
                 if running:  # stopped early (an interrupt): do not let the workers finish their tasks
                     _terminate_workers(pool)
                 pool.shutdown(wait=False, cancel_futures=True)
+
+
+def watch_parent(parent: int, every_s: float = 0.5) -> None:
+    """In a worker: exit as soon as the sweep that started it is gone (killed with -9, it
+    cannot tell its workers; they would wait for tasks forever, and with them the
+    resource tracker whose pipe they hold)."""
+    import threading
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent:  # re-parented: the sweep died
+                os._exit(1)
+            time.sleep(every_s)
+
+    threading.Thread(target=watch, name="mitlc-watch-parent", daemon=True).start()
 
 
 def _terminate_workers(pool: Any) -> None:

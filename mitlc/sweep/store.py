@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.errors import InputError
-from mitlc.fileio import atomic_write
+from mitlc.fileio import atomic_write, json_text
 from mitlc.sweep.grid import Axis
 
 RESULTS_JSON = "results.json"
@@ -101,10 +101,19 @@ class ResultStore:
                     file="--out",
                     hint="choose another --out directory, or use the same spec, --runs and --trials",
                 )
-        for r in records:
+        if not isinstance(header, dict) or not isinstance(records, list):
+            raise InputError(
+                "cannot read earlier results: 'header' is not an object or 'results' not a list", file=str(path)
+            )
+        for i, r in enumerate(records):
+            if not (isinstance(r, dict) and isinstance(r.get("task"), str)):
+                raise InputError(f"cannot read earlier results: result {i + 1} has no 'task' key", file=str(path))
             self.records.setdefault(r["task"], r)
         known = {a.name for a in self.axes}
-        for name, spec in data.get("axes", {}).items():
+        axes = data.get("axes", {})
+        for name, spec in axes.items() if isinstance(axes, dict) else ():
+            if not (isinstance(spec, dict) and isinstance(spec.get("kind"), str) and isinstance(spec.get("key"), str)):
+                raise InputError(f"cannot read earlier results: axis '{name}' has no kind and key", file=str(path))
             if name not in known:
                 self.axes.append(Axis(name, spec["kind"], spec["key"], (), ()))
                 known.add(name)
@@ -134,11 +143,11 @@ class ResultStore:
     def json_text(self) -> str:
         """``results.json``: the header and axes, then one compact line per result."""
         axes = {a.name: {"kind": a.kind, "key": a.key} for a in self.axes}
-        rows = ",\n".join("  " + json.dumps(r, separators=(",", ":")) for r in self.records.values())
+        rows = ",\n".join("  " + _strict(r, separators=(",", ":")) for r in self.records.values())
         return (
-            f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n "results": [\n{rows}\n ]}}\n'
+            f'{{"header": {_strict(self.header)},\n "axes": {_strict(axes)},\n "results": [\n{rows}\n ]}}\n'
             if rows
-            else f'{{"header": {json.dumps(self.header)},\n "axes": {json.dumps(axes)},\n "results": []}}\n'
+            else f'{{"header": {_strict(self.header)},\n "axes": {_strict(axes)},\n "results": []}}\n'
         )
 
     def write(self) -> None:
@@ -156,3 +165,8 @@ class ResultStore:
             metrics = [_csv_cell(r.get(m)) for m in CSV_METRICS]
             w.writerow([r["task"], r["seed"], *(a.lookup(r) for a in self.axes), *metrics])
         return buf.getvalue()
+
+
+def _strict(obj: object, **kw: object) -> str:
+    """Strict JSON of one value (a non-finite number is null), without the trailing newline."""
+    return json_text(obj, **kw).rstrip("\n")  # type: ignore[arg-type]
