@@ -1,0 +1,280 @@
+"""Mutation testing of mitlc's core modules: would the tests notice a wrong answer?
+
+Each mutant changes one operator or constant of one module (``<`` to ``<=``, ``+`` to
+``-``, ``and`` to ``or``, ``not x`` to ``x``, ``n`` to ``n + 1``, ``True`` to ``False``,
+a call statement to ``pass``, ...). The module's own tests run against it in a scratch
+copy of the repository; the mutant is *killed* when a test fails (or the tests time
+out), and *survives* when they all pass. A survivor is behaviour no test pins down,
+or an equivalent mutant (one that cannot change any result: say why in
+``EQUIVALENT``).
+
+    python tests/mutation.py                            # every module, 45 mutants each, 2 jobs
+    python tests/mutation.py --module compile --sample 100 --seed 3 --jobs 2
+    python tests/mutation.py --module parse --list      # the mutation points, without running
+
+Prints a line per mutant and a table of kill rates (killed / non-equivalent). Sampling
+is seeded: the same ``--seed`` draws the same mutants while the module is unchanged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+TARGETS: dict[str, tuple[str, list[str]]] = {
+    "compile": (
+        "mitlc/petri/compile.py",
+        ["test_compile.py", "test_compile_props.py", "test_violations.py", "test_net_vs_monitor.py", "test_golden.py"],
+    ),
+    "runtime": ("mitlc/learn/runtime.py", ["test_runtime.py", "test_net_vs_monitor.py", "test_sacpn.py"]),
+    "reward": (
+        "mitlc/petri/reward.py",
+        ["test_compile.py", "test_compile_props.py", "test_runtime.py", "test_violations.py"],
+    ),
+    "monitor": ("mitlc/monitor/offline.py", ["test_monitor.py", "test_net_vs_monitor.py"]),
+    "kernels": ("mitlc/monitor/kernels.py", ["test_monitor.py", "test_net_vs_monitor.py"]),
+    "parse": ("mitlc/spec/parse.py", ["test_parse.py", "test_inline_predicates.py"]),
+    "passes": ("mitlc/spec/passes.py", ["test_compile.py", "test_parse.py", "test_monitor.py"]),
+}
+"""Module -> (its file, its own tests)."""
+
+EQUIVALENT: dict[str, str] = {}
+"""``module:line:operator`` of a mutant that cannot change any result -> why."""
+
+_SWAP_CMP = {
+    ast.Lt: ast.LtE,
+    ast.LtE: ast.Lt,
+    ast.Gt: ast.GtE,
+    ast.GtE: ast.Gt,
+    ast.Eq: ast.NotEq,
+    ast.NotEq: ast.Eq,
+    ast.Is: ast.IsNot,
+    ast.IsNot: ast.Is,
+    ast.In: ast.NotIn,
+    ast.NotIn: ast.In,
+}
+_SWAP_BIN = {
+    ast.Add: ast.Sub,
+    ast.Sub: ast.Add,
+    ast.Mult: ast.Div,
+    ast.Div: ast.Mult,
+    ast.FloorDiv: ast.Div,
+    ast.Mod: ast.FloorDiv,
+    ast.BitAnd: ast.BitOr,
+    ast.BitOr: ast.BitAnd,
+}
+
+
+@dataclass(frozen=True)
+class Mutant:
+    module: str
+    index: int  # which mutation point, in the order the walk finds them
+    line: int
+    what: str
+
+    @property
+    def key(self) -> str:
+        return f"{self.module}:{self.line}:{self.what}"
+
+
+def _docstring_ids(tree: ast.AST) -> set[int]:
+    ids = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                ids.add(id(first))
+    return ids
+
+
+def points(tree: ast.AST) -> list[tuple[ast.AST, str, int]]:
+    """Every mutation point: (node, operator description, line), in walk order."""
+    skip = _docstring_ids(tree)
+    out: list[tuple[ast.AST, str, int]] = []
+    for node in ast.walk(tree):
+        line = getattr(node, "lineno", 0)
+        if isinstance(node, ast.Compare):
+            for i, op in enumerate(node.ops):
+                if type(op) in _SWAP_CMP:
+                    out.append((node, f"cmp{i}:{type(op).__name__}->{_SWAP_CMP[type(op)].__name__}", line))
+        elif isinstance(node, ast.BinOp) and type(node.op) in _SWAP_BIN:
+            out.append((node, f"bin:{type(node.op).__name__}->{_SWAP_BIN[type(node.op)].__name__}", line))
+        elif isinstance(node, ast.AugAssign) and type(node.op) in _SWAP_BIN:
+            out.append((node, f"aug:{type(node.op).__name__}->{_SWAP_BIN[type(node.op)].__name__}", line))
+        elif isinstance(node, ast.BoolOp):
+            out.append(
+                (node, f"bool:{type(node.op).__name__}->{'Or' if isinstance(node.op, ast.And) else 'And'}", line)
+            )
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+            out.append((node, "not:removed", line))
+        elif isinstance(node, ast.If):
+            out.append((node, "if:negated", line))
+        elif isinstance(node, ast.Constant) and id(node) not in skip:
+            v = node.value
+            if isinstance(v, bool):
+                out.append((node, f"const:{v}->{not v}", line))
+            elif isinstance(v, int):
+                out.append((node, f"const:{v}->{v + 1}", line))
+            elif isinstance(v, float):
+                out.append((node, f"const:{v}->{v * 2 if v else 1.0}", line))
+        elif isinstance(node, ast.Return) and node.value is not None:
+            if not (isinstance(node.value, ast.Constant) and node.value.value is None):
+                out.append((node, "return:None", line))
+        elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) and id(node) not in skip:
+            out.append((node, "call:removed", line))
+    return out
+
+
+def mutate(source: str, index: int) -> tuple[str, str, int]:
+    """The source with mutation point ``index`` applied: (new source, what, line)."""
+    tree = ast.parse(source)
+    node, what, line = points(tree)[index]
+    kind = what.split(":")[0]
+    if kind.startswith("cmp"):
+        i = int(kind[3:])
+        node.ops[i] = _SWAP_CMP[type(node.ops[i])]()  # type: ignore[attr-defined]
+    elif kind in ("bin", "aug"):
+        node.op = _SWAP_BIN[type(node.op)]()  # type: ignore[attr-defined]
+    elif kind == "bool":
+        node.op = ast.Or() if isinstance(node.op, ast.And) else ast.And()  # type: ignore[attr-defined]
+    elif kind == "not":
+        _replace(tree, node, node.operand)  # type: ignore[attr-defined]
+    elif kind == "if":
+        node.test = ast.UnaryOp(ast.Not(), node.test)  # type: ignore[attr-defined]
+    elif kind == "const":
+        v = node.value  # type: ignore[attr-defined]
+        node.value = (not v) if isinstance(v, bool) else v + 1 if isinstance(v, int) else (v * 2 if v else 1.0)  # type: ignore[attr-defined]
+    elif kind == "return":
+        node.value = ast.Constant(None)  # type: ignore[attr-defined]
+    elif kind == "call":
+        _replace(tree, node, ast.Pass())
+    ast.fix_missing_locations(tree)
+    return ast.unparse(tree), what, line
+
+
+def _replace(tree: ast.AST, old: ast.AST, new: ast.AST) -> None:
+    for parent in ast.walk(tree):
+        for field, value in ast.iter_fields(parent):
+            if value is old:
+                setattr(parent, field, new)
+                return
+            if isinstance(value, list):
+                for i, item in enumerate(value):
+                    if item is old:
+                        value[i] = new
+                        return
+
+
+def _scratch() -> Path:
+    """A copy of the repository's tracked files (the tests, specs, grammar and package)."""
+    dest = Path(tempfile.mkdtemp(prefix="mitlc-mutation-"))
+    files = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout.split()
+    for f in files:
+        target = dest / f
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if (ROOT / f).is_file():
+            shutil.copy2(ROOT / f, target)
+    return dest
+
+
+def run_tests(copy_root: Path, tests: list[str], timeout: float) -> str:
+    """``killed`` (a test failed), ``timeout`` (counted as killed) or ``survived``."""
+    env = {**os.environ, "PYTHONPATH": str(copy_root), "OPENBLAS_NUM_THREADS": "1"}
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *[f"tests/{t}" for t in tests]]
+    try:
+        r = subprocess.run(cmd, cwd=copy_root, env=env, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return "timeout"
+    return "survived" if r.returncode == 0 else "killed"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--module", action="append", choices=sorted(TARGETS), help="repeat; default: all")
+    ap.add_argument("--sample", type=int, default=45, help="mutants per module (default 45)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--timeout", type=float, default=300.0, help="seconds per mutant's tests")
+    ap.add_argument("--list", action="store_true", help="print the sampled mutants and stop")
+    args = ap.parse_args()
+    modules = args.module or sorted(TARGETS)
+    rng = random.Random(args.seed)
+    plan: list[tuple[Mutant, str]] = []
+    for m in modules:
+        source = (ROOT / TARGETS[m][0]).read_text(encoding="utf-8")
+        pts = points(ast.parse(source))
+        chosen = sorted(rng.sample(range(len(pts)), min(args.sample, len(pts))))
+        for i in chosen:
+            new, what, line = mutate(source, i)
+            plan.append((Mutant(m, i, line, what), new))
+        print(f"{m}: {len(pts)} mutation points, {len(chosen)} sampled", flush=True)
+    if args.list:
+        for mut, _ in plan:
+            print(mut.key)
+        return
+    t0 = time.perf_counter()
+    scratches = [_scratch() for _ in range(args.jobs)]
+    free = list(scratches)
+    import threading
+
+    lock = threading.Lock()
+    for s in scratches:  # the unmutated module, printed back by ast, must pass its tests
+        for m in modules:
+            path, _ = TARGETS[m]
+            (s / path).write_text(ast.unparse(ast.parse((ROOT / path).read_text())), encoding="utf-8")
+    for m in modules:
+        base = run_tests(scratches[0], TARGETS[m][1], args.timeout)
+        if base != "survived":
+            raise SystemExit(f"the tests of {m} fail without any mutant ({base}): fix them first")
+
+    def one(item: tuple[Mutant, str]) -> tuple[Mutant, str]:
+        mut, new = item
+        with lock:
+            s = free.pop()
+        path, tests = TARGETS[mut.module]
+        original = (s / path).read_text(encoding="utf-8")
+        try:
+            (s / path).write_text(new, encoding="utf-8")
+            outcome = run_tests(s, tests, args.timeout)
+        finally:
+            (s / path).write_text(original, encoding="utf-8")
+            with lock:
+                free.append(s)
+        print(f"{outcome:8} {mut.key}", flush=True)
+        return mut, outcome
+
+    with ThreadPoolExecutor(args.jobs) as pool:
+        results = list(pool.map(one, plan))
+    for s in scratches:
+        shutil.rmtree(s, ignore_errors=True)
+    print(f"\n{len(results)} mutants in {(time.perf_counter() - t0) / 60:.1f} min (seed {args.seed})")
+    print(f"{'module':8} {'killed':>7} {'survived':>9} {'equivalent':>11} {'kill rate':>10}")
+    for m in modules:
+        rows = [o for mut, o in results if mut.module == m]
+        eq = sum(1 for mut, o in results if mut.module == m and o == "survived" and mut.key in EQUIVALENT)
+        killed = sum(1 for o in rows if o in ("killed", "timeout"))
+        survived = sum(1 for o in rows if o == "survived") - eq
+        rate = killed / max(1, killed + survived)
+        print(f"{m:8} {killed:7} {survived:9} {eq:11} {rate:10.0%}")
+    survivors = [mut for mut, o in results if o == "survived" and mut.key not in EQUIVALENT]
+    if survivors:
+        print("\nsurvivors (not known to be equivalent):")
+        for mut in survivors:
+            line = (ROOT / TARGETS[mut.module][0]).read_text().splitlines()[mut.line - 1].strip()
+            print(f"  {mut.key:55} {line[:90]}")
+
+
+if __name__ == "__main__":
+    main()
