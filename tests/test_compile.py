@@ -186,3 +186,58 @@ def test_trigger_of_temporal_right_sides() -> None:
 def test_unknown_conjunction_reading() -> None:
     with pytest.raises(MitlError, match="conjunction"):
         compile_spec(parse_spec(spec_with("a & b")), CompileOptions(conjunction="mean"))
+
+
+def _stepped(rs, qs, dt=0.5):
+    from mitlc.learn.runtime import NetRuntime
+
+    x = np.array([[[q, 0.0] for q in qs]])
+    rt = NetRuntime(rs, ("q", "qdot"), dt=dt, steps=len(qs) - 1)
+    M = rt.reset(x[:, 0])
+    out = []
+    for k in range(1, len(qs)):
+        M1 = rt.step(M, x[:, k], k * dt)
+        out.append(float(rt.reward(M, M1)[0]))
+        M = M1
+    return out
+
+
+def test_a_bounded_eventually_pays_only_in_its_window_under_the_trial_clock():
+    """F[0,1] a, trial clock: gated by the timeline token of [0,1] one step ago and by its own token."""
+    spec = parse_spec("plant pendulum(dt = 0.5)\nhorizon 3\noption clock = trial\nprop a = q > 1\nformula F[0,1] a\n")
+    rs = compile_spec(spec)
+    assert str(rs.reward) == "(~p_tau_a * ~p_tau<=1) * (p_a - p_not_a)"
+    assert _stepped(rs, [2.0] * 7) == [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # met at once: paid once
+    # never met in time: -1 while the window was open a step ago (t = 0.5, 1, 1.5), nothing after
+    assert _stepped(rs, [0.0, 0.0, 0.0, 0.0, 2.0, 2.0, 2.0]) == [-1.0, -1.0, -1.0, 0.0, 0.0, 0.0]
+
+
+def test_a_part_no_trial_can_satisfy_is_warned_of_under_the_standard_clock_only():
+    spec = parse_spec("plant pendulum(dt = 0.5)\nhorizon 3\nprop a = q > 1\nformula F[4,5] a & F a\n", "s.mitl")
+    (warning,) = compile_spec(spec, CompileOptions.from_spec(spec, clock="standard")).warnings
+    assert warning.startswith("s.mitl: warning: 'F[4,5] a' cannot be satisfied within the horizon 3 s")
+    assert "not before t = 4 s" in warning
+    assert compile_spec(spec, CompileOptions.from_spec(spec, clock="trial")).warnings == ()
+    ok = parse_spec("plant pendulum(dt = 0.5)\nhorizon 3\nprop a = q > 1\nformula F[0,1] G a\n")
+    assert compile_spec(ok).warnings == ()
+
+
+def test_options_come_from_the_spec_unless_given():
+    spec = parse_spec(
+        "plant pendulum\nhorizon 3\noption conjunction = active\noption clock = trial\n"
+        "prop a = q > 1\nformula F a & G a\n"
+    )
+    o = CompileOptions.from_spec(spec)
+    assert (o.conjunction, o.violations, o.clock) == ("active", "off", "trial")
+    o = CompileOptions.from_spec(spec, conjunction="literal", violations=None, clock="standard")
+    assert (o.conjunction, o.violations, o.clock) == ("literal", "off", "standard")  # None keeps the spec's
+
+
+def test_nested_weights_multiply():
+    head = "plant pendulum(dt = 0.5)\nhorizon 3\nprop a = q > 1\nprop b = q < -1\n"
+    nested = compile_spec(parse_spec(head + "formula F G a & 2 * (3 * G !b)\n"))
+    flat = compile_spec(parse_spec(head + "formula F G a & 6 * G !b\n"))
+    one = compile_spec(parse_spec(head + "formula F G a & G !b\n"))
+    qs = [0.0, -2.0, 0.5, 2.0, 2.0, -2.0, 2.0]
+    assert _stepped(nested, qs) == _stepped(flat, qs)
+    assert _stepped(nested, qs) != _stepped(one, qs)

@@ -235,3 +235,30 @@ def test_runtime_counts_violations_on_both_paths() -> None:
     # each entry into psi: base min(1*(0-1), 2*(0-1)) = -2 and the penalty c = 4 + 1
     assert rs.penalty == 5.0
     assert rewards == [-7.0, -1.0, -7.0, -1.0, 1.0]
+
+
+def test_stepped_rewards_are_the_off_reward_less_c_per_charge() -> None:
+    """Stepped by the runtime over a trace that enters psi twice: counted charges each entry
+    once, permanent charges every step from the first; both pay exactly off - c * charge."""
+    spec = load_spec(ROOT / "specs" / "pendulum" / "p2_avoid.mitl")
+    qs = [3.0, 1.0, 1.1, 2.5, 1.0, 2.6, 0.1, 0.0]  # psi is 0.3 < q < pi/2 + 0.5: entered at samples 1 and 4
+    x = np.array([[[q, 0.0] for q in qs]])
+    stepped = {}
+    for v in ("off", "permanent", "counted"):
+        rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=v))
+        rt = NetRuntime(rs, ("q", "qdot"), dt=0.03, steps=len(qs) - 1)
+        M = rt.reset(x[:, 0])
+        rewards, charges = [], []
+        for k in range(1, len(qs)):
+            M1 = rt.step(M, x[:, k], k * 0.03)
+            rewards.append(float(rt.reward(M, M1)[0]))
+            charges.append(float(rs.charge.evaluate(M, M1)[0]) if rs.charge is not None else 0.0)
+            M = M1
+        stepped[v] = (rs.penalty, np.array(rewards), charges)
+    off = stepped["off"][1]
+    c, perm, v_perm = stepped["permanent"]
+    assert c == 5.0 and v_perm == [1.0] * 7  # violated from the first entry on, for good
+    np.testing.assert_array_equal(perm, off - c * np.array(v_perm))
+    c, counted, n_new = stepped["counted"]
+    assert c == 5.0 and n_new == [1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]  # each entry once, the second too
+    np.testing.assert_array_equal(counted, off - c * np.array(n_new))
