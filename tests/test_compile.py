@@ -220,6 +220,9 @@ def test_a_part_no_trial_can_satisfy_is_warned_of_under_the_standard_clock_only(
     assert compile_spec(spec, CompileOptions.from_spec(spec, clock="trial")).warnings == ()
     ok = parse_spec("plant pendulum(dt = 0.5)\nhorizon 3\nprop a = q > 1\nformula F[0,1] G a\n")
     assert compile_spec(ok).warnings == ()
+    # the last sample, t = 3 s (100 steps of 0.03 s, 3.0000000000000004 in floating point), still counts
+    at_end = parse_spec("plant pendulum\nhorizon 3\nprop a = q > 1\nformula F[3,4] a\n")
+    assert compile_spec(at_end).warnings == ()
 
 
 def test_options_come_from_the_spec_unless_given():

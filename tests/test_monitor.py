@@ -836,3 +836,22 @@ def test_check_the_shipped_spec(tmp_path: Path) -> None:
         pytest.skip("spec file not written yet")
     res = check(str(P5_SPEC), str(write_csv(tmp_path / "good.csv", rows(GOOD))))
     assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize("n", [12, 20, 200])  # window past the end, plain loop, blocked scan (> 64 samples)
+def test_until_windows_and_empty_intervals_on_long_traces(n):
+    """a U[lo,hi] b needs its witness inside the window even when the window starts late, and an
+    interval without a sample offset ((1, 1.4) at 0.5 s) is never met: F false, G true, U false."""
+    from mitlc.monitor.kernels import BOOL, until
+
+    a = np.ones((1, n), dtype=bool)
+    b = np.zeros((1, n), dtype=bool)
+    b[0, 8] = True  # the one witness, at offset 8 from the start
+    got = until(a, b, 5, 6, BOOL)[0]  # witness must sit 5 or 6 samples ahead
+    want = np.array([k + 5 <= 8 <= k + 6 for k in range(n)])
+    np.testing.assert_array_equal(got, want)
+    assert not until(a, b, 3, 2, BOOL).any()  # lo > hi: no offset, never
+    spec = parse_spec("prop a = x > 0\nprop b = y > 0\nformula F a\n")
+    tr = {"x": np.ones((1, n)), "y": np.ones((1, n))}
+    for text, value in (("F(1,1.4) a", False), ("G(1,1.4) !a", True), ("a U(1,1.4) b", False)):
+        assert monitor(spec, tr, 0.5, parse_formula(text)).satisfied.tolist() == [value], text

@@ -353,3 +353,56 @@ def test_sixty_bounded_eventuallys_train() -> None:
     assert returns.shape == (3, 2) and np.all(np.isfinite(returns))
     ro = agent.rollout(agent.evaluation_states())
     np.testing.assert_array_equal(ro.rewards, agent.runtime.reward_code(ro.codes[:, :-1], ro.codes[:, 1:]))
+
+
+@pytest.mark.parametrize("n_props", [3, 7, 8, 9, 12])
+def test_many_propositions_pack_and_step_as_their_predicates_say(n_props):
+    """n region nets, one per threshold q > c_i (none provably disjoint from another): after
+    every step each net marks the place of its own predicate's truth, whichever path steps it
+    (markings, packed codes, the tables or the direct reading), and the rewards agree."""
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import parse_spec
+
+    cs = np.linspace(-2.0, 2.0, n_props)
+    props = "".join(f"prop a{i} = q > {c:.4f}\n" for i, c in enumerate(cs))
+    formula = " & ".join(f"F a{i}" for i in range(n_props))
+    rs = compile_spec(parse_spec(f"plant pendulum\nhorizon 3\n{props}formula {formula}\n"))
+    rt = NetRuntime(rs, ("q", "qdot"), dt=0.03, steps=100)
+    rng = np.random.default_rng(n_props)
+    x = np.stack([rng.uniform(-3, 3, (5, 12)), np.zeros((5, 12))], axis=2)
+    M, code = rt.reset(x[:, 0]), rt.reset_code(x[:, 0])
+    names = rs.net.place_names
+    for k in range(1, 12):
+        tau = k * 0.03
+        M1, code1 = rt.step(M, x[:, k], tau), rt.step_code(code, x[:, k], tau)
+        np.testing.assert_array_equal(rt.decode(code1), M1)
+        np.testing.assert_array_equal(rt.step_direct(M, x[:, k], tau), M1)
+        for i, c in enumerate(cs):
+            holds = x[:, k, 0] > round(c, 4)
+            np.testing.assert_array_equal(M1[:, names.index(f"p_a{i}")], holds.astype(int))
+            np.testing.assert_array_equal(M1[:, names.index(f"p_not_a{i}")], (~holds).astype(int))
+        np.testing.assert_allclose(rt.reward_code(code, code1), rt.reward(M, M1))
+        M, code = M1, code1
+
+
+def test_obligation_clocks_and_verdicts_by_hand():
+    """F[0,2] G goal at dt = 0.5 s, horizon 3 s: goal from t = 1 s on. The G obligation started
+    at t = 1 s ages over the trial length (3 s), F's over its upper end (2 s); at the end both
+    are decided (true) and nothing lives."""
+    from mitlc.petri import timed
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import parse_spec
+
+    rs = compile_spec(
+        parse_spec("plant pendulum(dt = 0.5)\nhorizon 3\nprop goal = abs(q) < 0.3\nformula F[0,2] G goal\n")
+    )
+    rt = NetRuntime(rs, ("q", "qdot"), dt=0.5, steps=6)
+    qs = [2.0, 1.0, 0.1, 0.0, 0.1, 0.0, 0.1]
+    x = np.array([[[q, 0.0] for q in qs]])
+    M = rt.reset(x[:, 0])
+    assert rt.obligation_clocks().tolist() == [[0.0, 0.0]]
+    want = [[0.0, 0.25], [0.0, 0.5], [0.5 / 3, 0.75], [1.0 / 3, 1.0], [0.5, 1.25], [0.0, 0.0]]
+    for k in range(1, 7):
+        M = rt.step(M, x[:, k], k * 0.5)
+        np.testing.assert_allclose(rt.obligation_clocks(), [want[k - 1]], atol=1e-12)
+        assert rt.verdicts().tolist() == [[timed.PENDING if k < 6 else timed.TRUE]]
