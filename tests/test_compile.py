@@ -244,3 +244,28 @@ def test_nested_weights_multiply():
     qs = [0.0, -2.0, 0.5, 2.0, 2.0, -2.0, 2.0]
     assert _stepped(nested, qs) == _stepped(flat, qs)
     assert _stepped(nested, qs) != _stepped(one, qs)
+
+
+def test_the_switch_guard_of_a_timed_until_under_the_trial_clock():
+    """a U (phi U[1,2] c): the token leaves 'until' for 'after' when phi holds; with phi = true
+    the switch has no condition at all (one empty guard term), not a state condition 'true'."""
+    head = "plant pendulum(dt = 0.5)\nhorizon 3\noption clock = trial\nprop a = q > 1\nprop b = q < -1\n"
+    head += "prop c = abs(q) < 0.5\n"
+
+    def switch(formula):
+        rs = compile_spec(parse_spec(head + f"formula {formula}\n"))
+        (t,) = [t for t in rs.net.transitions if t.inputs == ("p_until_U1",) and t.outputs == ("p_after_U1",)]
+        return t.guard
+
+    assert str(switch("a U (b U[1,2] c)")) == "b"
+    g = switch("a U (true U[1,2] c)")
+    assert str(g) == "true" and len(g.terms) == 1 and g.terms[0].state is None and g.terms[0].clock is None
+
+
+def test_a_weight_inside_a_timed_part_scales_its_gated_reward():
+    head = "plant pendulum(dt = 0.5)\nhorizon 3\nprop a = q > 1\n"
+    qs = [0.0, 2.0, 2.0, 0.0, 2.0, 2.0, 2.0]
+    plain = _stepped(compile_spec(parse_spec(head + "formula F[0,2] G a\n")), qs)
+    inner = compile_spec(parse_spec(head + "formula F[0,2] (2 * G a)\n"))
+    assert str(inner.reward) == "~p_open_G1 * (2 * (1 + ~p_a) * (p_a - p_not_a))"  # the gate stays outside
+    assert _stepped(inner, qs) == [2 * r for r in plain] == [2.0, 4.0, -4.0, 2.0, 4.0, 4.0]

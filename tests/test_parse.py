@@ -262,3 +262,19 @@ def test_requirements() -> None:
 def test_requirement_errors(line: str, message: str) -> None:
     with pytest.raises(SpecError, match=message):
         parse_spec(f"plant mass-damper\n{line}\n")
+
+
+def test_boundaries_of_what_is_accepted():
+    """Each limit on its edge: accepted at it, refused one past it."""
+    base = "plant pendulum\nprop a = q > 0\n"
+    assert parse_spec(base + "horizon 0.5\nformula 0.5 * G a\n").horizon == 0.5  # positive, below 1
+    deep = "!" * 63 + "a"  # 64 levels: the deepest accepted
+    assert parse_spec(base + f"formula {deep}\n")
+    with pytest.raises(SpecError, match="more than 64 levels"):
+        parse_spec(base + f"formula !{deep}\n")
+    gym = "plant gym:Pendulum-v1\nstate x = obs[{i}]\nprop b = x > 0\nformula F b\n"
+    pytest.importorskip("gymnasium")
+    with pytest.raises(SpecError, match="observation index is a whole number"):
+        parse_spec(gym.format(i=2**31))
+    with pytest.raises(SpecError, match="outside the observation"):
+        parse_spec(gym.format(i=2**31 - 1))

@@ -266,7 +266,9 @@ class _Build(Transformer):
         tok, num = children
         i = float(num)
         if not i.is_integer() or i >= 2**31:
-            raise SpecError(f"an observation index is a whole number, got '{num}'", line=num.line, column=num.column)
+            raise SpecError(
+                f"an observation index is a whole number below 2**31, got '{num}'", line=num.line, column=num.column
+            )
         if str(tok) != "obs":
             raise SpecError(
                 f"'{tok}[...]': only the observation is indexed, as obs[i] in a 'state' line",
