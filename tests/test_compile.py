@@ -269,3 +269,17 @@ def test_a_weight_inside_a_timed_part_scales_its_gated_reward():
     inner = compile_spec(parse_spec(head + "formula F[0,2] (2 * G a)\n"))
     assert str(inner.reward) == "~p_open_G1 * (2 * (1 + ~p_a) * (p_a - p_not_a))"  # the gate stays outside
     assert _stepped(inner, qs) == [2 * r for r in plain] == [2.0, 4.0, -4.0, 2.0, 4.0, 4.0]
+
+
+def test_recurrences_of_a_conjunction_form_one_cycle_in_order():
+    """G F a & G F b & G F c (problem 4 with three regions): one token cycles a -> b -> c -> a,
+    moving on when the place's own proposition holds; each term pays while its place was marked."""
+    head = "plant pendulum(dt = 0.5)\nhorizon 3\nprop a = q > 1\nprop b = q < -1\nprop c = abs(q) < 0.5\n"
+    rs = compile_spec(parse_spec(head + "formula G F a & G F b & G F c\n"))
+    cycle = {t.inputs[0]: (t.outputs[0], str(t.guard)) for t in rs.net.transitions if t.inputs[0].startswith("p_tau")}
+    assert cycle == {"p_tau_a": ("p_tau_b", "a"), "p_tau_b": ("p_tau_c", "b"), "p_tau_c": ("p_tau_a", "c")}
+    # by hand, from c with the token at a: visiting a, b, c, a in order moves it round (each term
+    # pays 1 on its visit, the min over the closed others is 0); then c instead of b costs
+    # (1 + 0) * (0 - 1) = -1 and the token waits at b for b
+    assert _stepped(rs, [0.0, 2.0, -2.0, 0.0, 2.0, 0.0, -2.0]) == [0.0, 0.0, 0.0, 0.0, -1.0, 0.0]
+    assert _stepped(rs, [0.0, -2.0, 2.0, 0.0, 2.0, -2.0, 0.0]) == [-1.0, 0.0, -1.0, -1.0, 0.0, 0.0]
