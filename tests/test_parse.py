@@ -200,9 +200,34 @@ VALID = SPEC
 @given(st.text(max_size=200))
 def test_fuzz_arbitrary_text(text: str) -> None:
     try:
-        parse_spec(text, "fuzz.mitl")
+        spec = parse_spec(text, "fuzz.mitl")
     except MitlError as err:
         assert err.headline().startswith("fuzz.mitl")
+        _located_in(err, text)
+        return
+    _round_trips(spec)
+
+
+def _located_in(err: MitlError, text: str) -> None:
+    """An error's line and column lie in the text (the column may be one past a line's end)."""
+    lines = text.split("\n")
+    if err.line is not None:
+        assert 1 <= err.line <= len(lines), (err.line, len(lines))
+        if err.column is not None:
+            assert 1 <= err.column <= len(lines[err.line - 1]) + 1
+
+
+def _round_trips(spec) -> None:
+    """What parsed prints back to text that parses to the same trees: a wrong parse would not."""
+    for f in (spec.formula, spec.check):
+        if f is not None:
+            assert parse_formula(str(f)) == f
+    for p in spec.props:
+        assert str(parse_predicate(str(p.pred))) == str(p.pred)
+    defined = {p.name for p in spec.props}
+    for f in (spec.formula, spec.check):
+        if f is not None:
+            assert set(A.atoms(f)) <= defined
 
 
 @settings(max_examples=400, deadline=None)
@@ -228,9 +253,12 @@ def test_fuzz_mutated_specs(mutations) -> None:
         else:
             text = text[:pos] + piece + text[pos + len(piece) :]
     try:
-        parse_spec(text, "m.mitl")
+        spec = parse_spec(text, "m.mitl")
     except MitlError as err:
-        assert err.line is None or err.line >= 1
+        assert err.headline().startswith("m.mitl")
+        _located_in(err, text)
+        return
+    _round_trips(spec)
 
 
 # ----------------------------------------------------------------- classical criteria (chapter 3)
