@@ -247,7 +247,7 @@ class _Builder(ViolationWatches):
             return self._until(f, ctx, under_g, conj)
         raise CompileError(f"cannot compile {type(f).__name__}")
 
-    def _bonus(self, f: A.Formula, ctx: frozenset[int], under_g: bool) -> R.RExpr:
+    def _bonus(self, f: A.Formula, ctx: frozenset[int]) -> R.RExpr:
         """The reward of ``G f`` without its window: ``(1 + ~h_f) r_f`` for state formulas."""
         if is_state_formula(f):
             return R.Prod((R.Sum((R.ONE, self._h(f, prev=True))), self.reward(f, ctx, True)))
@@ -265,14 +265,14 @@ class _Builder(ViolationWatches):
         rec = recurrence(f)
         if rec is not None:  # a lone G F phi: its one-place cycle is trivial and dropped
             w, phi = rec
-            return R.scale(w, self._bonus(phi, ctx, True))
+            return R.scale(w, self._bonus(phi, ctx))
         phase = self._phase(f.interval) if self.segments else ctx
         inner_ctx = (phase & ctx) or ctx
         if conj and is_state_formula(f.child) and (phase & ctx or not self.segments):
             self._watch(
                 f"G_{self._label(f.child, '')}", negate_state(strip_weights(f.child)), inner_ctx, str(f), counted=True
             )
-        return self._gate(phase, ctx, self._bonus(f.child, inner_ctx, True))
+        return self._gate(phase, ctx, self._bonus(f.child, inner_ctx))
 
     def _eventually(self, f: A.Eventually, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
         timed = not f.interval.is_unbounded
@@ -457,13 +457,13 @@ class _Builder(ViolationWatches):
                 return rew(core.child)
             if isinstance(core, A.Globally):
                 if is_state_formula(core.child):
-                    return gate(i, "open", self._bonus(core.child, ctx, True))
+                    return gate(i, "open", self._bonus(core.child, ctx))
                 return rew(core.child)
             if isinstance(core, A.Until):
                 return R.Sum((gate(i, "wait", rew(core.left)), gate(i, "open", rew(core.right))))
             if isinstance(core, A.Release):
                 if is_state_formula(core.right):
-                    return gate(i, "open", self._bonus(core.right, ctx, True))
+                    return gate(i, "open", self._bonus(core.right, ctx))
                 return rew(core.right)
             raise CompileError(f"cannot compile {type(core).__name__} in a timed obligation")
 
@@ -505,7 +505,7 @@ class _Builder(ViolationWatches):
                 self.cache[key] = names
             names = self.cache[key]
             for (i, (w, phi)), name in zip(cyc, names, strict=True):
-                terms[i] = R.Gated(tokens([name], prev=True), R.scale(w, self._bonus(phi, ctx, True)))
+                terms[i] = R.Gated(tokens([name], prev=True), R.scale(w, self._bonus(phi, ctx)))
         for i, p in enumerate(parts):
             if i not in terms:
                 terms[i] = self.reward(p, ctx, under_g, conj)
