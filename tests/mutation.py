@@ -261,7 +261,7 @@ def main() -> None:
     ap.add_argument("--sample", type=int, default=45, help="mutants per module (default 45)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--timeout", type=float, default=300.0, help="seconds per mutant's tests")
+    ap.add_argument("--timeout", type=float, default=120.0, help="seconds per mutant's tests")
     ap.add_argument("--list", action="store_true", help="print the sampled mutants and stop")
     args = ap.parse_args()
     modules = args.module or sorted(TARGETS)
