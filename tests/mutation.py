@@ -45,7 +45,7 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
     ),
     "monitor": ("mitlc/monitor/offline.py", ["test_monitor.py", "test_net_vs_monitor.py", "test_passes.py"]),
     "kernels": ("mitlc/monitor/kernels.py", ["test_monitor.py", "test_net_vs_monitor.py", "test_passes.py"]),
-    "parse": ("mitlc/spec/parse.py", ["test_parse.py", "test_inline_predicates.py"]),
+    "parse": ("mitlc/spec/parse.py", ["test_parse.py", "test_inline_predicates.py", "test_gym_plants.py"]),
     "passes": ("mitlc/spec/passes.py", ["test_passes.py", "test_compile.py", "test_parse.py"]),
 }
 """Module -> (its file, its own tests)."""
@@ -59,10 +59,10 @@ EQUIVALENT: dict[str, str] = {
     "kernels:121:const:1->2": _BLOCKS,
     "kernels:151:bool:Or->And": "an early return for an empty or out-of-trace window: the general path gives bottom",
     "kernels:87:bin:Sub->Add": "one more block of padding (filled with the identity) changes no window's value",
-    "parse:490:if:negated": "lark raises an inline transformer's errors unwrapped: its VisitError branch is never run",
-    "parse:537:const:1->2": "the fallback position of a node built without one; the parser gives every node its own",
-    "parse:548:bool:Or->And": "both positions are set by the parser whenever either is",
-    "parse:680:const:1->2": "the fallback position of a variable built without one; the parser gives each its own",
+    "parse:488:if:negated": "lark raises an inline transformer's errors unwrapped: its VisitError branch is never run",
+    "parse:535:const:1->2": "the fallback position of a node built without one; the parser gives every node its own",
+    "parse:546:bool:Or->And": "both positions are set by the parser whenever either is",
+    "parse:678:const:1->2": "the fallback position of a variable built without one; the parser gives each its own",
     "reward:33:const:9->10": "the precedence of atoms only needs to be the highest: 9 or 10 prints the same",
     "runtime:384:if:negated": "advance_code on a net without timed parts: the timed update of no tree is the identity",
     "runtime:490:if:negated": _FAST,

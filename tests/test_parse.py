@@ -306,3 +306,49 @@ def test_boundaries_of_what_is_accepted():
         parse_spec(gym.format(i=2**31))
     with pytest.raises(SpecError, match="outside the observation"):
         parse_spec(gym.format(i=2**31 - 1))
+
+
+def test_statements_errors_are_located_on_their_own_line():
+    def error(text: str) -> MitlError:
+        with pytest.raises(MitlError) as err:
+            parse_spec(text, "s.mitl")
+        return err.value
+
+    tail = "prop a = q > 0\nformula F a\n"
+    e = error("plant pendulum\nhorizon 3\n\nhorizon -1\n" + tail)
+    assert (e.line, e.column) == (4, 1) and "positive" in e.message
+    e = error("plant pendulum\nsetpoint 1\n  setpoint 2\n" + tail)
+    assert (e.line, e.column) == (3, 3) and "'setpoint' given twice" in e.message
+    e = error("plant pendulum(u_max = -1)\n" + tail)
+    assert (e.line, e.column) == (1, 16) and "must be positive" in e.message
+    e = error("plant pendulum\nplant pendulum\n" + tail)
+    assert e.line == 2 and "'plant' given twice" in e.message
+    long_chain = "prop a = q > 0\nformula " + " & ".join(["a"] * 256) + "\n"
+    assert parse_spec("plant pendulum\n" + long_chain)  # a tree 256 deep: the deepest accepted
+    e = error("plant pendulum\nprop a = q > 0\nformula " + " & ".join(["a"] * 257) + "\n")
+    assert "more than 256 operators deep" in e.message
+
+
+def test_intervals_closed_at_infinity_read_as_open():
+    f = parse_formula("F[1,inf] a & G[1,2] a")
+    ev, gl = f.left, f.right
+    assert (ev.interval.hi_closed, gl.interval.hi_closed, gl.interval.lo_closed) == (False, True, True)
+    assert str(f) == "F[1,inf) a & G[1,2] a"
+
+
+def test_gym_statements_are_checked():
+    pytest.importorskip("gymnasium")
+    base = "plant gym:Pendulum-v1\n{state}\nprop b = x > 0\nformula F b\n"
+    for state, message in (
+        ("state pi = obs[0], x = obs[1]", "reserved word"),
+        ("state prop = obs[0], x = obs[1]", None),  # a keyword: not even a name
+        ("state x = obs[0] in [2, 1]", "lower < upper"),
+    ):
+        with pytest.raises(MitlError) as err:
+            parse_spec(base.format(state=state))
+        if message is not None:
+            assert message in err.value.message
+    spec = parse_spec(base.format(state="state x = obs[0] + 1 in [0, 2]") + "horizon 1\n")
+    assert (spec.plant.var("x").lo, spec.plant.var("x").hi) == (0.0, 2.0)
+    with pytest.raises(MitlError, match="'plant' given twice"):
+        parse_spec("plant gym:Pendulum-v1\nplant gym:Pendulum-v1\nstate x = obs[0]\nprop b = x > 0\nformula F b\n")

@@ -107,3 +107,20 @@ def test_bounds_are_tight_where_no_place_repeats():
         assert R.bounds(e) == want, str(e)
         values = e.evaluate(PREV, NOW)
         assert (values.min(), values.max()) == want, str(e)
+
+
+def test_printing_parenthesises_by_precedence():
+    """What mitlc compile prints: sums inside products and negations get parentheses, a sum's
+    terms flatten, a nested product keeps its own (it is one factor), negative constants are wrapped."""
+    cases = {
+        R.Prod((R.Sum((A, B)), R.Neg(R.Sum((A, B))))): "(p_a + p_b) * -(p_a + p_b)",
+        R.Neg(R.Prod((A, B))): "-(p_a * p_b)",
+        R.Sum((R.Prod((A, B)), R.Neg(A), R.Const(-1.0))): "p_a * p_b - p_a + (-1)",
+        R.Prod((R.Neg(A), R.Gated(B, R.Sum((A, R.ONE))))): "-p_a * (p_b * (p_a + 1))",
+        R.Gated(R.Sum((A, B)), R.Prod((A, R.Neg(B)))): "(p_a + p_b) * (p_a * -p_b)",
+        R.Neg(R.Neg(A)): "-(-p_a)",
+        R.Sum((A, R.Sum((A, B)))): "p_a + p_a + p_b",
+        R.Prod((A, R.Prod((A, B)))): "p_a * (p_a * p_b)",
+    }
+    for e, text in cases.items():
+        assert str(e) == text

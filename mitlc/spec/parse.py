@@ -143,9 +143,7 @@ def _interval(raw: _RawInterval | None) -> A.Interval:
         )
     if lo == hi and not (raw.lo_closed and raw.hi_closed):
         raise SpecError(f"empty interval {text}", line=where.line, column=where.column)
-    if math.isinf(hi) and raw.hi_closed:
-        # [a, inf] is read as [a, inf): infinity is never reached.
-        pass
+    # [a, inf] is read as [a, inf): infinity is never reached
     return A.Interval(lo, hi, raw.lo_closed, raw.hi_closed and not math.isinf(hi))
 
 
