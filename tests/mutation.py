@@ -63,6 +63,8 @@ EQUIVALENT: dict[str, str] = {
     "parse:535:const:1->2": "the fallback position of a node built without one; the parser gives every node its own",
     "parse:546:bool:Or->And": "both positions are set by the parser whenever either is",
     "parse:678:const:1->2": "the fallback position of a variable built without one; the parser gives each its own",
+    "parse:633:if:negated": "looking up installed plants' entry points also when the name is known changes nothing",
+    "reward:150:const:1->2": "no node has the precedence between a negation's and the next: +1 and +2 wrap the same",
     "reward:33:const:9->10": "the precedence of atoms only needs to be the highest: 9 or 10 prints the same",
     "runtime:384:if:negated": "advance_code on a net without timed parts: the timed update of no tree is the identity",
     "runtime:490:if:negated": _FAST,

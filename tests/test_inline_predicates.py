@@ -65,6 +65,12 @@ def test_what_is_still_not_allowed_says_what_to_write(formula, error, message, h
         assert e.hint is not None and hint in e.hint
 
 
+def test_a_bare_comparison_after_a_weight_is_refused_in_a_formula_alone_too():
+    with pytest.raises(SpecError, match="is ambiguous"):
+        parse_formula("10 * q < 1")
+    assert str(parse_formula("10 * (q < 1)")) == "10 * (q < 1)"
+
+
 def test_a_name_taken_by_a_different_prop_is_an_error():
     with pytest.raises(SpecError, match="rename that proposition"):
         parse_spec(HEAD + "prop q_lt_1 = q > 5\nformula G (q < 1) & F q_lt_1\n")

@@ -102,6 +102,8 @@ def test_bounds_are_tight_where_no_place_repeats():
         R.Min((R.Gated(A, R.Const(-5.0)), R.Gated(B, R.Const(3.0))), active=True): (-5.0, 3.0),
         R.Max((A, R.Const(-1.0))): (0.0, 1.0),
         R.Const(0.5): (0.5, 0.5),
+        # active, every term positive: with no gate open the reward is 0, so 0 bounds it below
+        R.Min((R.Gated(A, R.Const(2.0)), R.Gated(B, R.Const(3.0))), active=True): (0.0, 3.0),
     }
     for e, want in cases.items():
         assert R.bounds(e) == want, str(e)
@@ -121,6 +123,7 @@ def test_printing_parenthesises_by_precedence():
         R.Neg(R.Neg(A)): "-(-p_a)",
         R.Sum((A, R.Sum((A, B)))): "p_a + p_a + p_b",
         R.Prod((A, R.Prod((A, B)))): "p_a * (p_a * p_b)",
+        R.Sum((A, R.Const(0.0))): "p_a + 0",
     }
     for e, text in cases.items():
         assert str(e) == text
