@@ -76,7 +76,7 @@ from mitlc.errors import InputError
 from mitlc.learn.runtime import NetRuntime
 from mitlc.petri.compile import RewardSystem, compile_spec
 from mitlc.plants.base import PLANTS, make_integrator, wrap_angle
-from mitlc.plants.gym_env import MAX_RESETS, env_dt
+from mitlc.plants.gym_env import MAX_RESETS, env_dt, outside_init
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
 from mitlc.spec.parse import load_spec
@@ -439,11 +439,7 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return self._observation(obs), info
 
     def _inside_init(self, x: np.ndarray) -> bool:
-        for i, lo, hi in self._init:
-            tol = 1e-9 * max(1.0, abs(lo), abs(hi))
-            if not lo - tol <= x[i] <= hi + tol:
-                return False
-        return True
+        return not bool(outside_init(x[None, :], self._init)[0])
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, env_reward, terminated, truncated, info = self.env.step(action)

@@ -52,6 +52,7 @@ __all__ = [
     "gym_plant",
     "GymSimulator",
     "MAX_RESETS",
+    "outside_init",
 ]
 
 GYM_PREFIX = "gym:"
@@ -219,6 +220,16 @@ def gym_plant(env_id: str, kwargs: Mapping[str, float], observe: Sequence[ObsVar
     )
 
 
+def outside_init(x: np.ndarray, ranges: Sequence[tuple[int, float, float]]) -> np.ndarray:
+    """Per row of ``x (B, n)``: a column ``i`` of ``ranges`` ``(i, lo, hi)`` lies outside
+    ``[lo, hi]`` (give or take 1e-9 relative, so that a point ``v = 0`` matches 0.0); NaN is outside."""
+    bad = np.zeros(x.shape[0], dtype=bool)
+    for i, lo, hi in ranges:
+        tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+        bad |= ~((x[:, i] >= lo - tol) & (x[:, i] <= hi + tol))
+    return bad
+
+
 class GymSimulator:
     """``B`` copies of a Gymnasium environment behind the trainer's reset/step interface.
 
@@ -292,11 +303,7 @@ class GymSimulator:
         return x
 
     def _outside(self, x: np.ndarray) -> np.ndarray:
-        bad = ~np.isfinite(x).all(axis=1)
-        for i, lo, hi in self._init:
-            tol = 1e-9 * max(1.0, abs(lo), abs(hi))
-            bad |= (x[:, i] < lo - tol) | (x[:, i] > hi + tol)
-        return bad
+        return ~np.isfinite(x).all(axis=1) | outside_init(x, self._init)
 
     def reset(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         B = len(rngs)
