@@ -16,7 +16,7 @@ import numpy as np
 
 from mitlc.errors import InputError
 
-__all__ = ["read_checkpoint", "read_meta", "damaged"]
+__all__ = ["read_checkpoint", "read_meta", "load_state", "damaged"]
 
 _COMMON = {
     "runs": int,
@@ -74,6 +74,17 @@ def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, 
 def read_meta(path: str | Path) -> dict[str, Any]:
     """The checked ``meta`` record of a checkpoint (settings, runs, seed, spec text...)."""
     return read_checkpoint(path)[1]
+
+
+def load_state(learner: Any, arrays: dict[str, np.ndarray], path: str | Path) -> None:
+    """``learner.load_state_dict(arrays)``, any failure of a checkpoint that passed
+    :func:`read_checkpoint` as one :class:`InputError` naming ``path``."""
+    try:
+        learner.load_state_dict(arrays)
+    except InputError as exc:
+        raise exc.located(str(path)) from None
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise damaged(path, exc) from None
 
 
 def damaged(path: str | Path, exc: BaseException) -> InputError:

@@ -621,7 +621,7 @@ def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
 
     ``spec``: the checkpoint's spec when the caller has parsed it already (``mitlc train
     --resume`` has); used only if its text is the checkpoint's, else the text is parsed."""
-    from mitlc.learn.checkpoint import damaged, read_checkpoint
+    from mitlc.learn.checkpoint import load_state, read_checkpoint
     from mitlc.spec.parse import parse_spec
 
     data, meta = read_checkpoint(path)
@@ -632,12 +632,7 @@ def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
     # checkpoints written before these settings existed were trained without them
     saved = {**_LEGACY_SETTINGS, **meta["settings"]}
     learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]), seed=int(meta["seed"]))
-    try:
-        learner.load_state_dict(data)
-    except InputError as exc:
-        raise exc.located(str(path)) from None
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
-        raise damaged(path, exc) from None
+    load_state(learner, data, path)
     return learner
 
 

@@ -60,7 +60,7 @@ import numpy as np
 
 from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import npz_bytes, save_npz
-from mitlc.learn.checkpoint import damaged, read_checkpoint
+from mitlc.learn.checkpoint import load_state, read_checkpoint
 from mitlc.learn.checkpoint import read_meta as _read_meta
 from mitlc.learn.features import RbfFeatures
 from mitlc.learn.runtime import NetRuntime
@@ -258,8 +258,6 @@ class Sacpn:
                 f"the net has too many markings for SACPN's transition tables ({len(rs.net.places)} places in "
                 f"{len(rs.net.subnets)} sub-nets); split the formula or merge propositions"
             )
-        if self.runtime.tables is None:
-            raise TrainingError("the reward net is too large to tabulate for training")
         self.n_places = self.runtime.n_places
         # The actor weighs the rows of the state and timing places only: a violation
         # sub-net is no reason to act differently in the same state. The critic weighs
@@ -696,12 +694,7 @@ class Sacpn:
 
     def load(self, path: str | Path) -> None:
         arrays, _ = read_checkpoint(path)
-        try:
-            self.load_state_dict(arrays)
-        except InputError as exc:
-            raise exc.located(str(path)) from None
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise damaged(path, exc) from None
+        load_state(self, arrays, path)
 
 
 def read_meta(path: str | Path) -> dict:
