@@ -520,7 +520,9 @@ def _check_depth(f: A.Formula) -> None:
 
 
 def _check_weights(f: A.Formula, text: str) -> None:
-    """``10 * q < 1`` reads as the weight 10 on ``q < 1``: ask for the parentheses that say so."""
+    """The weights of ``f``: their products along each path must stay finite (an infinite
+    reward), and ``10 * q < 1``, which reads as the weight 10 on ``q < 1``, must say so with
+    parentheses. The overflow is looked for first, over the whole formula."""
     lines = text.split("\n")
 
     def offset(pos: A.Pos) -> int:
