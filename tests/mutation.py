@@ -73,6 +73,15 @@ EQUIVALENT: dict[str, str] = {
     "runtime:355:bool:And->Or": "an assert that holds either way (both are set together)",
     "runtime:570:const:1.0->2.0": "any time before the first clock end represents that stretch",
     "runtime:595:const:1->2": "the seed of the marking hash's weights: any seed hashes the same set apart",
+    "runtime:185:const:0->1": "the clock ends are read only by compact tables, which set them",
+    "runtime:661:const:0->1": "compact tables never have counting places: their increments are never read",
+    "runtime:167:const:1->2": "the atom bits of a net without propositions are never read",
+    "runtime:270:bool:And->Or": "an assert that holds either way (compact tables always carry their index)",
+    "runtime:543:const:7->8": "any offset of the counting places tells a reward that reads their tokens apart",
+    "runtime:537:const:1->2": "a second copy of the places' columns is never read: the expressions index the first",
+    "runtime:247:const:0->1": "a 0-d array of the segment indexes the tables as its int does",
+    "runtime:593:const:1->2": "numpy reads any negative size in reshape as the one to infer",
+    "runtime:621:bin:Mult->Div": "an early exit of the reachability search; the final size check refuses the same nets",
 }
 """``module:line:operator`` of a mutant that cannot change any result -> why (from the
 survivors of ``--seed 0``; the lines are those of the commit that lists them)."""

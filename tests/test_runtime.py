@@ -406,3 +406,99 @@ def test_obligation_clocks_and_verdicts_by_hand():
         M = rt.step(M, x[:, k], k * 0.5)
         np.testing.assert_allclose(rt.obligation_clocks(), [want[k - 1]], atol=1e-12)
         assert rt.verdicts().tolist() == [[timed.PENDING if k < 6 else timed.TRUE]]
+
+
+def _table_mode(rt: NetRuntime) -> str:
+    if rt.tables is None:
+        return "none"
+    return ("compact" if rt.compact else "full") + ("" if rt.tables.reward is not None else "-untabulated reward")
+
+
+@pytest.mark.parametrize(
+    ("spec", "violations"),
+    [
+        ("pendulum/p2_avoid", "counted"),
+        ("pendulum/p4_alternate", "permanent"),
+        ("pendulum/p5_timed_visit", "permanent"),
+        ("pendulum/n3_bounded_response", "permanent"),
+        ("eventuallys", "permanent"),
+        ("late eventuallys", "permanent"),
+    ],
+)
+def test_every_table_mode_steps_rewards_and_charges_alike(spec: str, violations: str, monkeypatch) -> None:
+    """Whatever the table limit leaves (full tables, compact ones, compact with the reward
+    evaluated on markings, none at all), step, step_code, reward_code and charge_code give
+    what the full tables give, which are what the reward and charge expressions say on the
+    stepped markings."""
+    from mitlc.learn import runtime as RT
+    from mitlc.spec.parse import load_spec
+
+    if spec.endswith("eventuallys"):
+        text = _many_eventuallys(4, props=2)
+        if spec.startswith("late"):
+            # windows that open late, with ends on the samples: the clock segments before the
+            # first end and every end itself are stepped too
+            late = "F[0.25,0.5] a0 & F[0.125,0.75] a1 & F[0.375,1] a0 & F[0.25,1.25) a1"
+            text = text[: text.index("formula ")] + f"formula {late}\n"
+        parsed = parse_spec(text)
+    else:
+        parsed = load_spec(spec)
+    rs = compile_spec(parsed, CompileOptions(violations=violations))
+    assert rs.charge is not None
+    rng = np.random.default_rng(5)
+    R, N, dt = 16, 48, 0.0625  # binary: the taus land exactly on the guards' ends
+    q = np.cumsum(rng.normal(0, 0.4, (R, N + 1)), axis=1) + rng.uniform(-3, 3, (R, 1))
+    x = np.stack([wrap_angle(q), rng.normal(0, 3, (R, N + 1))], axis=2)
+    reference = None
+    modes = set()
+    for limit in (RT.MAX_TABLE, 1 << 20, 1 << 16, 1 << 12, 1):
+        monkeypatch.setattr(RT, "MAX_TABLE", limit)
+        rt = NetRuntime(rs, dt=dt, steps=N)  # stepped on markings
+        by_code = NetRuntime(rs, dt=dt, steps=N)  # stepped on codes (its own obligation state)
+        modes.add(_table_mode(rt))
+        M = rt.reset(x[:, 0])
+        code = by_code.reset_code(x[:, 0]) if by_code.tables is not None else None
+        got = []
+        for k in range(N):
+            tau = (k + 1) * dt
+            M1 = rt.step(M, x[:, k + 1], tau)
+            reward = rt.reward(M, M1)
+            charge = np.asarray(rs.charge.evaluate(M, M1), dtype=float)
+            if code is not None:
+                code1 = by_code.step_code(code, x[:, k + 1], tau)
+                if not rt.counters.size:  # codes leave the counting places out
+                    np.testing.assert_array_equal(by_code.decode(code1), M1)
+                    np.testing.assert_array_equal(by_code.reward_code(code, code1), reward)
+                np.testing.assert_array_equal(by_code.charge_code(code, code1), charge)
+                code = code1
+            elif not rt.counters.size:
+                np.testing.assert_array_equal(rt.charge_code(rt.encode(M), rt.encode(M1)), charge)
+            got.append((M1.copy(), reward, charge))
+            M = M1
+        if reference is None:
+            reference = got
+        else:
+            for (m, r, c), (m0, r0, c0) in zip(got, reference, strict=True):
+                np.testing.assert_array_equal(m, m0)
+                np.testing.assert_array_equal(r, r0)
+                np.testing.assert_array_equal(c, c0)
+    assert "none" in modes and len(modes) >= 2, modes
+    if spec.endswith("eventuallys"):
+        assert any(m.startswith("compact") for m in modes), modes
+    if spec == "eventuallys":
+        assert {"compact", "compact-untabulated reward"} <= modes, modes
+
+
+def test_timed_runtime_takes_its_trial_from_the_spec() -> None:
+    """A net with timed obligations steps at the plant's dt over the spec's horizon unless told
+    otherwise; without a horizon it must be told."""
+    from mitlc.errors import CompileError
+    from mitlc.spec.parse import load_spec
+
+    spec = load_spec("pendulum/n3_bounded_response")
+    rt = NetRuntime(compile_spec(spec))
+    assert rt.dt == float(spec.param("dt")) and rt.steps == round(spec.horizon / rt.dt)
+    assert NetRuntime(compile_spec(spec), dt=0.1, steps=7).steps == 7
+    bare = parse_spec("plant pendulum\nprop a = q > 0\nformula G[0,1] F[0,0.5] a\n")
+    with pytest.raises((CompileError, ValueError), match="horizon"):
+        NetRuntime(compile_spec(bare))
