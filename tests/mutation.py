@@ -59,6 +59,8 @@ EQUIVALENT: dict[str, str] = {
     "kernels:121:const:1->2": _BLOCKS,
     "kernels:151:bool:Or->And": "an early return for an empty or out-of-trace window: the general path gives bottom",
     "kernels:87:bin:Sub->Add": "one more block of padding (filled with the identity) changes no window's value",
+    "monitor:403:const:1->2": "_first reads one sample past b only where b is the trace's end or a hit lies in [a, b]",
+    "kernels:157:cmp0:Gt->GtE": "with lo = 0 the left side's window [0, -1] is empty: meeting with top changes nothing",
     "parse:488:if:negated": "lark raises an inline transformer's errors unwrapped: its VisitError branch is never run",
     "parse:537:const:1->2": "the fallback position of a node built without one; the parser gives every node its own",
     "parse:548:bool:Or->And": "both positions are set by the parser whenever either is",

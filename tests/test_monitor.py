@@ -839,7 +839,7 @@ def test_check_the_shipped_spec(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
 
 
-@pytest.mark.parametrize("n", [12, 20, 200])  # window past the end, plain loop, blocked scan (> 64 samples)
+@pytest.mark.parametrize("n", [10, 12, 20, 200])  # window past the end, plain loop, blocked scan (> 64 samples)
 def test_until_windows_and_empty_intervals_on_long_traces(n):
     """a U[lo,hi] b needs its witness inside the window even when the window starts late, and an
     interval without a sample offset ((1, 1.4) at 0.5 s) is never met: F false, G true, U false."""
@@ -848,9 +848,14 @@ def test_until_windows_and_empty_intervals_on_long_traces(n):
     a = np.ones((1, n), dtype=bool)
     b = np.zeros((1, n), dtype=bool)
     b[0, 8] = True  # the one witness, at offset 8 from the start
-    got = until(a, b, 5, 6, BOOL)[0]  # witness must sit 5 or 6 samples ahead
-    want = np.array([k + 5 <= 8 <= k + 6 for k in range(n)])
-    np.testing.assert_array_equal(got, want)
+    for lo, hi in ((5, 6), (3, 6), (1, 2), (0, 3)):  # (3, 6): lo + hi reaches the end of 10 samples
+        got = until(a, b, lo, hi, BOOL)[0]  # the witness must sit lo to hi samples ahead
+        want = np.array([k + lo <= 8 <= k + hi for k in range(n)])
+        np.testing.assert_array_equal(got, want, err_msg=f"[{lo},{hi}]")
+    last = np.zeros((1, n), dtype=bool)
+    last[0, -1] = True  # a window one sample short of the trace misses a witness at its end
+    got = until(a, last, 0, n - 2, BOOL)[0]
+    np.testing.assert_array_equal(got, np.arange(n) >= 1)
     assert not until(a, b, 3, 2, BOOL).any()  # lo > hi: no offset, never
     spec = parse_spec("prop a = x > 0\nprop b = y > 0\nformula F a\n")
     tr = {"x": np.ones((1, n)), "y": np.ones((1, n))}
@@ -911,6 +916,11 @@ def test_violation_time_against_every_continuation(f: A.Formula) -> None:
         ("G (a -> F[0,1] b)", [-1, 1, -1, -1, -1], [-1] * 5, 1.5, "F[0,1] b"),
         # the window of an until passes without a witness
         ("a U[0,1] b", [1, 1, 1, 1, 1], [-1, -1, -1, 1, 1], 1.0, "a U[0,1] b"),
+        # the left side failing on the window's last sample is no reason: no witness came
+        ("a U[0,1] b", [1, 1, -1, 1, 1], [-1, -1, -1, 1, 1], 1.0, "a U[0,1] b"),
+        # a release broken on the trace's last sample, and on its window's last sample
+        ("a R b", [-1] * 5, [1, 1, 1, 1, -1], 2.0, "b"),
+        ("a R[0,1] b", [-1] * 5, [1, 1, -1, 1, 1], 1.0, "b"),
     ],
 )
 def test_violation_time_and_blame_by_hand(text: str, x: list[float], y: list[float], when: float, blamed: str) -> None:
