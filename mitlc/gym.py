@@ -25,7 +25,9 @@ observation        ``{"obs": obs, "marking": M_k}`` (``Dict`` of the env's space
                    clocks together make the reward Markov
 ``info``           ``marking`` (``M_k``, int8, in ``net.place_names`` order), ``tau``
                    (``k * dt``), ``env_reward``, and ``verdict``: the monitor's verdict
-                   on ``x_0 .. x_k`` (when :mod:`mitlc.monitor` is available)
+                   on ``x_0 .. x_k`` (``satisfied``, ``robustness``; at the episode's
+                   end also ``violation_time`` and ``failing``), when
+                   :mod:`mitlc.monitor` is available
 ``reset``          the net goes back to its initial marking: timing tokens at ``M0``,
                    state tokens on the region of ``x_0``
 =================  =====================================================================
@@ -189,9 +191,13 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         environment's); otherwise the environment's ``dt``, ``tau`` or
         ``metadata["dt"]``, else the spec plant's ``dt``.
     verdict:
-        ``"step"``: ``info["verdict"]`` after every step (the monitor re-reads
-        the whole trace, so a step costs time linear in its length); ``"end"``:
-        only when the episode terminates or is truncated; ``"off"``: never.
+        ``"step"``: ``info["verdict"]`` after every step, ``satisfied`` and
+        ``robustness`` of ``x_0 .. x_k`` from the online monitor
+        (:class:`mitlc.monitor.online.OnlineMonitor`, constant time per step for
+        bounded formulas), and when the episode terminates or is truncated also
+        ``violation_time`` and ``failing`` from the offline monitor; ``"end"``:
+        the offline monitor's whole verdict only when the episode ends; ``"off"``:
+        never.
     truncate_at_horizon:
         Also truncate the episode when ``tau`` reaches the spec's ``horizon``.
     """
@@ -317,12 +323,17 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             dtype=bool,
         )
         self._monitor = None
+        self._online = None
         if verdict != "off":
             try:
                 self._monitor = importlib.import_module("mitlc.monitor").monitor
+                if verdict == "step":  # each prefix's verdict in constant time per step
+                    online = importlib.import_module("mitlc.monitor.online")
+                    self._online = online.OnlineMonitor(self.mitl_spec, self.dt)
             except ImportError:  # the monitor is optional here: no verdict without it
-                self._monitor = None
+                self._monitor = self._online = None
         self._verdict_mode = verdict
+        self._judged = [(n, i) for i, n in enumerate(self.state_names) if n in self._needed]
 
         self._M = np.tile(np.asarray(rs.net.M0, dtype=np.int64), (1, 1))
         self._k = 0
@@ -434,8 +445,9 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._M = self.runtime.reset(x0[None, :])
         info = dict(info)
         info.update(self._info())
-        if self._verdict_mode == "step":
-            self._add_verdict(info)
+        if self._online is not None:
+            self._online.reset()
+            self._add_online_verdict(info, x0)
         return self._observation(obs), info
 
     def _inside_init(self, x: np.ndarray) -> bool:
@@ -462,8 +474,13 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         info = dict(info)
         info["env_reward"] = env_reward
         info.update(self._info())
-        if self._verdict_mode == "step" or (self._verdict_mode == "end" and (terminated or truncated)):
-            self._add_verdict(info)
+        if terminated or truncated:  # the whole episode's verdict, with when and why it failed
+            if self._verdict_mode != "off":
+                self._add_verdict(info)
+            if self._online is not None:
+                self._online.update({n: x[i : i + 1] for n, i in self._judged})
+        elif self._online is not None:
+            self._add_online_verdict(info, x)
         return self._observation(obs), reward, bool(terminated), bool(truncated), info
 
     # ------------------------------------------------------------ helpers
@@ -483,6 +500,11 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def _info(self) -> dict[str, Any]:
         return {"marking": self.marking, "tau": self._k * self.dt}
+
+    def _add_online_verdict(self, info: dict[str, Any], x: np.ndarray) -> None:
+        assert self._online is not None
+        v = self._online.update({n: x[i : i + 1] for n, i in self._judged})
+        info["verdict"] = {"satisfied": bool(v.satisfied[0]), "robustness": float(v.robustness[0])}
 
     def _add_verdict(self, info: dict[str, Any]) -> None:
         if self._monitor is None:

@@ -223,6 +223,17 @@ def test_python_md_examples_run(monkeypatch) -> None:
     assert result.failed == 0 and result.attempted >= 40
 
 
+def test_monitor_md_examples_run(monkeypatch) -> None:
+    monkeypatch.chdir(ROOT)
+    result = doctest.testfile(
+        str(ROOT / "docs" / "monitor.md"),
+        module_relative=False,
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+        verbose=False,
+    )
+    assert result.failed == 0 and result.attempted >= 5
+
+
 def console_blocks(markdown: str) -> list[list[tuple[str, str]]]:
     """The ``console`` blocks of a page: per block, (command, expected output) pairs."""
     blocks, current, in_block = [], None, False

@@ -216,12 +216,19 @@ def test_info_has_the_monitors_verdict_so_far() -> None:
     _, observations, _, infos, _ = random_rollout(env, seed=1, steps=40)
     spec = env.mitl_spec
     states = np.array([env.state(o["obs"]) for o in observations])
-    for k in (0, 5, 40):
+    for k in range(41):  # every prefix, from the online monitor
         res = monitor(spec, states[: k + 1], PENDULUM_DT)
         v = infos[k]["verdict"]
-        assert v["satisfied"] == bool(res.satisfied[0])
-        assert v["robustness"] == float(res.robustness[0])
-        assert v["failing"] == res.failing[0]
+        assert v == {"satisfied": bool(res.satisfied[0]), "robustness": float(res.robustness[0])}
+    # at the episode's end: the offline monitor's whole verdict, when and why it failed
+    env = wrapped(P1, truncate_at_horizon=True)
+    _, observations, _, infos, ends = random_rollout(env, seed=1, steps=60)
+    assert ends[-1] == (False, True)
+    states = np.array([env.state(o["obs"]) for o in observations])
+    res = monitor(spec, states, PENDULUM_DT)
+    last = infos[-1]["verdict"]
+    assert last["satisfied"] == bool(res.satisfied[0]) and last["robustness"] == float(res.robustness[0])
+    assert last["failing"] == res.failing[0] and last["violation_time"] == float(res.violation_time[0])
     # F G kappa over x_0..x_k: the pendulum starts in kappa (q = 0.074) and falls out.
     assert infos[0]["verdict"]["satisfied"] is True
     assert infos[40]["verdict"]["satisfied"] is False

@@ -50,7 +50,7 @@ with the trace length, not with length x window.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import singledispatch
 from typing import Any
@@ -109,44 +109,61 @@ def _compare_rob(op: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 _CMP = P.COMPARISONS
 
 
-@singledispatch
-def _pred(p: P.Pred, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Truth and robustness of a boolean predicate, both of ``shape``."""
+PredFn = Callable[[Mapping[str, np.ndarray], tuple[int, int]], tuple[np.ndarray, np.ndarray]]
+"""A compiled predicate: ``(env, shape) -> (truth, robustness)``, both of ``shape``."""
+
+
+def compile_pred(p: P.Pred) -> PredFn:
+    """Truth and robustness of a boolean predicate as one closure over an environment of
+    state arrays (the offline monitor calls it once per trace, the online one per sample).
+
+    >>> f = compile_pred(P.Compare((P.Var("x"), P.Num(1.0)), ("<",)))
+    >>> f({"x": np.array([[0.5, 3.0]])}, (1, 2))
+    (array([[ True, False]]), array([[ 0.5, -2. ]]))
+    """
+    if isinstance(p, P.Compare):
+        ops = []
+        for op in p.ops:
+            if op not in _CMP:  # pragma: no cover - the grammar only has these
+                raise CompileError(f"unknown comparison '{op}'")
+            ops.append((_CMP[op], op))
+
+        def column(name: str) -> Callable[[Any], np.ndarray]:
+            return lambda e: np.asarray(e[name], dtype=float)
+
+        reads = [P.compile_numpy(o, column) for o in p.operands]
+
+        def compare(env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+            values = [np.broadcast_to(np.asarray(f(env), dtype=float), shape) for f in reads]
+            truth = np.ones(shape, dtype=bool)
+            rob = np.full(shape, np.inf)
+            for (cmp, op), a, b in zip(ops, values, values[1:], strict=False):
+                truth = truth & cmp(a, b)
+                d = _compare_rob(op, a, b)
+                rob = np.minimum(rob, np.where(np.isnan(d), 0.0, d))
+            return truth, rob
+
+        return compare
+    if isinstance(p, (P.PAnd, P.POr)):
+        fl, fr = compile_pred(p.left), compile_pred(p.right)
+        both = isinstance(p, P.PAnd)
+
+        def junction(env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+            (ta, ra), (tb, rb) = fl(env, shape), fr(env, shape)
+            return (ta & tb, np.minimum(ra, rb)) if both else (ta | tb, np.maximum(ra, rb))
+
+        return junction
+    if isinstance(p, P.PNot):
+        fa = compile_pred(p.arg)
+
+        def negation(env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+            t, r = fa(env, shape)
+            return ~t, -r
+
+        return negation
     if P.is_boolean(p):  # pragma: no cover - every boolean node has a case
         raise CompileError(f"cannot monitor predicate node {type(p).__name__}")
     raise CompileError(f"'{p}' is a number, not a condition")
-
-
-@_pred.register
-def _(p: P.Compare, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    values = [np.broadcast_to(np.asarray(P.evaluate(o, env), dtype=float), shape) for o in p.operands]
-    truth = np.ones(shape, dtype=bool)
-    rob = np.full(shape, np.inf)
-    for op, a, b in zip(p.ops, values, values[1:], strict=False):
-        if op not in _CMP:  # pragma: no cover - the grammar only has these
-            raise CompileError(f"unknown comparison '{op}'")
-        truth = truth & _CMP[op](a, b)
-        d = _compare_rob(op, a, b)
-        rob = np.minimum(rob, np.where(np.isnan(d), 0.0, d))
-    return truth, rob
-
-
-@_pred.register
-def _(p: P.PAnd, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    (ta, ra), (tb, rb) = _pred(p.left, env, shape), _pred(p.right, env, shape)
-    return ta & tb, np.minimum(ra, rb)
-
-
-@_pred.register
-def _(p: P.POr, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    (ta, ra), (tb, rb) = _pred(p.left, env, shape), _pred(p.right, env, shape)
-    return ta | tb, np.maximum(ra, rb)
-
-
-@_pred.register
-def _(p: P.PNot, env: Mapping[str, np.ndarray], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    t, r = _pred(p.arg, env, shape)
-    return ~t, -r
 
 
 # ----------------------------------------------------------------- evaluation
@@ -164,7 +181,7 @@ class _Eval:
     def atom(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         if name not in self._atoms:
             with np.errstate(all="ignore"):
-                self._atoms[name] = _pred(self.spec.prop(name).pred, self.env, (self.R, self.L))
+                self._atoms[name] = compile_pred(self.spec.prop(name).pred)(self.env, (self.R, self.L))
         return self._atoms[name]
 
     def sig(self, f: A.Formula, lat: Lattice) -> np.ndarray:
