@@ -2,30 +2,80 @@
 
 Every user error becomes one clear line (plus the source line and a caret when
 there is one) on stderr and exit code 2; never a traceback (:mod:`mitlc.cli.common`).
+
+The command modules load on demand: ``mitlc check`` imports :mod:`mitlc.cli.check`
+and what it needs, not the trainers' modules, and ``mitlc --help`` lists every
+command from :data:`COMMANDS` without importing any of them.
 """
 
 from __future__ import annotations
 
+import importlib
 import sys
 from typing import Any
 
 import click
 
 from mitlc import __version__
-from mitlc.cli.check import check
-from mitlc.cli.compile import compile_cmd
-from mitlc.cli.hybrid import automaton, compose_cmd
-from mitlc.cli.plants import plants
-from mitlc.cli.specs import specs
-from mitlc.cli.sweep import sweep
-from mitlc.cli.train import simulate, train
 
-__all__ = ["main"]
+__all__ = ["main", "COMMANDS"]
+
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "automaton": (
+        "hybrid",
+        "automaton",
+        "Compile SPEC's classical criteria (require ...) into a hybrid automaton (thesis appendix B).",
+    ),
+    "check": ("check", "check", "Check a recorded TRACE (.csv or .npz) against SPEC (.mitl) with the MITL monitor."),
+    "compile": ("compile", "compile_cmd", "Compile SPEC (.mitl) into a reward Petri net and reward expression."),
+    "compose": (
+        "hybrid",
+        "compose_cmd",
+        "Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3).",
+    ),
+    "plants": ("plants", "plants", "List the plants a spec's 'plant NAME' line can name."),
+    "simulate": (
+        "train",
+        "simulate",
+        "Roll out a trained greedy policy from the spec's initial set and judge each rollout.",
+    ),
+    "specs": ("specs", "specs", "List the shipped specs, or print the one called NAME (e.g. pendulum/p2_avoid)."),
+    "sweep": ("sweep", "sweep", "Train SPEC over a grid of trainer settings, weights and options, several seeds each."),
+    "train": ("train", "train", "Train SACPN controllers on a spec and judge them with the monitor."),
+}
+"""Command name -> (module under :mod:`mitlc.cli`, attribute, short help: the first sentence of the
+command's docstring, which ``mitlc --help`` lists; tests/test_light_cli.py keeps them in step)."""
 
 
 class _Group(click.Group):
     """click's own errors (a bad option value, a directory given as SPEC, a missing argument) in
-    mitlc's one-line format, exit 2; Ctrl-C before a command's own handling, exit 130."""
+    mitlc's one-line format, exit 2; Ctrl-C before a command's own handling (its module's import
+    included), exit 130. Commands of :data:`COMMANDS` are imported when first resolved."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(set(super().list_commands(ctx)) | set(COMMANDS))
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        cmd = super().get_command(ctx, cmd_name)
+        if cmd is None and cmd_name in COMMANDS:
+            module, attr, _ = COMMANDS[cmd_name]
+            cmd = getattr(importlib.import_module(f"mitlc.cli.{module}"), attr)
+            self.add_command(cmd, cmd_name)
+        return cmd
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """click's listing, with the short help of a command not loaded yet taken from :data:`COMMANDS`."""
+        names = self.list_commands(ctx)
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = []
+        for name in names:
+            cmd = self.commands.get(name)
+            if cmd is None:
+                rows.append((name, click.Command(name, help=COMMANDS[name][2]).get_short_help_str(limit)))
+            elif not cmd.hidden:
+                rows.append((name, cmd.get_short_help_str(limit)))
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def main(
         self,
@@ -66,7 +116,3 @@ def _one_line(exc: click.exceptions.ClickException) -> str:
 @click.version_option(__version__, prog_name="mitlc")
 def main() -> None:
     """Compile MITL control specs into reward Petri nets, train and check controllers."""
-
-
-for command in (compile_cmd, check, train, simulate, sweep, automaton, compose_cmd, specs, plants):
-    main.add_command(command)

@@ -8,18 +8,23 @@ naming the file and, for a CSV, the line.
 
 from __future__ import annotations
 
+import bisect
+import codecs
 import csv
+import io
 import math
+import warnings
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
 from mitlc.errors import InputError
 from mitlc.limits import MIN_DT
 
-__all__ = ["Trace", "read_trace", "write_trace", "UNIFORM_TOL"]
+__all__ = ["Trace", "SourceLines", "read_trace", "write_trace", "UNIFORM_TOL", "CHUNK_BYTES"]
 
 UNIFORM_TOL = 1e-3
 """How far (as a fraction of the time step) a sample time may stray from the uniform grid."""
@@ -29,7 +34,7 @@ class Trace:
     """A loaded trace: sample times and one array per column."""
 
     def __init__(
-        self, path: str, t: np.ndarray, columns: dict[str, np.ndarray], lines: list[int] | None = None
+        self, path: str, t: np.ndarray, columns: dict[str, np.ndarray], lines: SourceLines | None = None
     ) -> None:
         self.path = path
         self.t = t
@@ -40,43 +45,188 @@ class Trace:
         return self.lines[k] if self.lines is not None else None
 
 
+class SourceLines:
+    """The source line of each sample of a CSV, by runs: a run of samples on consecutive lines is
+    its first line; a run with blank lines among its rows keeps an array of its lines."""
+
+    def __init__(self) -> None:
+        self._starts: list[int] = []  # the first sample of each run
+        self._runs: list[int | np.ndarray] = []
+        self._n = 0
+
+    def add(self, count: int, lines: int | np.ndarray) -> None:
+        """The next ``count`` samples: on the lines from ``lines`` on, or on the lines ``lines`` lists."""
+        if count:
+            self._starts.append(self._n)
+            self._runs.append(lines)
+            self._n += count
+
+    def __len__(self) -> int:
+        return self._n
+
+    def __getitem__(self, k: int) -> int:
+        if not 0 <= k < self._n:
+            raise IndexError(k)
+        i = bisect.bisect_right(self._starts, k) - 1
+        run = self._runs[i]
+        return run + k - self._starts[i] if isinstance(run, int) else int(run[k - self._starts[i]])
+
+
+CHUNK_BYTES = 1 << 24
+"""Text read and parsed at a time (16 MiB, about 300 000 rows of three 17-digit numbers)."""
+
+_NUMERIC = b"0123456789.eE+-, \t\n"
+"""The bytes of a chunk numpy parses as Python's ``float`` would; a chunk with any other byte
+(a quote, a letter, a non-ASCII character, a line break other than LF or CRLF) is read row by row."""
+
+_NOT_UTF8 = "cannot read trace: not UTF-8 text"
+
+
 def _read_csv(path: str, needed: tuple[str, ...]) -> Trace:
+    """Read a CSV trace in chunks: numpy parses a chunk of plain numbers at once; a chunk it
+    refuses (or any other) is read row by row, which finds the first bad row and says where."""
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:  # a byte-order mark is allowed
-            text = fh.read()
+        with open(path, "rb") as fh:
+            try:
+                return _CsvReader(path, fh, needed).read()
+            except InputError:
+                if not _utf8(fh):  # the whole file is decoded first, as text: not UTF-8 comes before a bad row
+                    raise InputError(_NOT_UTF8, file=path) from None
+                raise
     except OSError as exc:
         raise InputError(f"cannot read trace: {exc.strerror}", file=path) from None
+
+
+def _utf8(fh: BinaryIO) -> bool:
+    fh.seek(0)
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    try:
+        while block := fh.read(CHUNK_BYTES):
+            decoder.decode(block)
+        decoder.decode(b"", final=True)
     except UnicodeDecodeError:
-        raise InputError("cannot read trace: not UTF-8 text", file=path) from None
-    rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
-    if not rows:
-        raise InputError("trace file is empty (expected a header row with 't' and the state variables)", file=path)
-    head_line, header = rows[0]
-    names = [h.strip() for h in header]
-    for i, name in enumerate(names):
-        if name in names[:i]:
-            raise InputError(f"duplicate column '{name}'", file=path, line=head_line)
-    for want in ("t",) + needed:
-        if want not in names:
-            raise InputError(f"missing column '{want}'", file=path, line=head_line, hint=f"columns: {', '.join(names)}")
-    idx = {name: names.index(name) for name in ("t",) + needed}
-    data = {name: np.empty(len(rows) - 1) for name in idx}
-    lines = []
-    for k, (n, row) in enumerate(rows[1:]):
-        if len(row) != len(names):
-            raise InputError(f"row has {len(row)} fields, the header has {len(names)}", file=path, line=n)
-        for name, i in idx.items():
-            cell = row[i].strip()
-            try:
-                value = float(cell)
-            except ValueError:
-                raise InputError(f"not a number: '{cell}' (column {name})", file=path, line=n) from None
-            if not math.isfinite(value):
-                raise InputError(f"not a finite number: '{cell}' (column {name})", file=path, line=n)
-            data[name][k] = value
-        lines.append(n)
-    t = data.pop("t")
-    return Trace(path, t, data, lines)
+        return False
+    return True
+
+
+class _CsvReader:
+    def __init__(self, path: str, fh: BinaryIO, needed: tuple[str, ...]) -> None:
+        self.path = path
+        self.fh = fh
+        self.needed = needed
+        self.names: list[str] = []
+        self.idx: dict[str, int] = {}
+        self.parts: list[np.ndarray] = []  # (rows, columns of idx) per chunk
+        self.lines = SourceLines()
+
+    def chunks(self) -> Iterator[bytes]:
+        """The file's bytes in pieces that end at a line feed (the last one may not), a BOM dropped."""
+        rest = b""
+        first = True
+        while block := self.fh.read(CHUNK_BYTES):
+            if first:
+                block = block.removeprefix(codecs.BOM_UTF8)
+                first = False
+            rest += block
+            cut = rest.rfind(b"\n") + 1
+            if cut:
+                yield rest[:cut]
+                rest = rest[cut:]
+        if rest:
+            yield rest
+
+    def read(self) -> Trace:
+        line = 1  # the number of the chunk's first line
+        for chunk in self.chunks():
+            while not self.names and chunk:  # the header is the first row that is not blank
+                cut = chunk.find(b"\n") + 1 or len(chunk)
+                line = self.slow(chunk[:cut], line)
+                chunk = chunk[cut:]
+            if chunk:
+                line = self.fast(chunk, line)
+        if not self.names:
+            raise InputError(
+                "trace file is empty (expected a header row with 't' and the state variables)", file=self.path
+            )
+        data = np.concatenate(self.parts) if self.parts else np.empty((0, len(self.idx)))
+        columns = {name: np.ascontiguousarray(data[:, j]) for j, name in enumerate(self.idx)}
+        t = columns.pop("t")
+        return Trace(self.path, t, columns, self.lines)
+
+    def fast(self, chunk: bytes, line: int) -> int:
+        """Parse a chunk of plain numbers with numpy; anything else (or any doubt) goes row by row.
+        Returns the number of the next chunk's first line."""
+        text = chunk.replace(b"\r\n", b"\n") if b"\r" in chunk else chunk
+        if b"\r" in text or text.translate(None, _NUMERIC) or len(self.names) < 2:
+            return self.slow(chunk, line)
+        count = text.count(b"\n") + (not text.endswith(b"\n"))
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # "input contained no data": a shape check below
+                a = np.loadtxt(io.BytesIO(text), delimiter=",", comments=None, dtype=float, ndmin=2)
+        except ValueError:
+            return self.slow(chunk, line)
+        if a.shape != (count, len(self.names)):  # a blank line numpy skipped, a row's wrong length
+            return self.slow(chunk, line)
+        a = a[:, list(self.idx.values())]
+        if not np.isfinite(a).all():
+            return self.slow(chunk, line)
+        self.parts.append(a)
+        self.lines.add(count, line)
+        return line + count
+
+    def slow(self, chunk: bytes, line: int) -> int:
+        """The chunk row by row, as Python's csv and float read it: the first bad row is an error
+        with its line. Returns the number of the next chunk's first line."""
+        try:
+            text = chunk.decode("utf-8")
+        except UnicodeDecodeError:
+            raise InputError(_NOT_UTF8, file=self.path) from None
+        values: list[list[float]] = []
+        where: list[int] = []
+        n = line - 1
+        try:
+            for n, row in enumerate(csv.reader(text.splitlines()), start=line):
+                if not any(c.strip() for c in row):
+                    continue
+                if not self.names:
+                    self.header(row, n)
+                    continue
+                if len(row) != len(self.names):
+                    raise InputError(
+                        f"row has {len(row)} fields, the header has {len(self.names)}", file=self.path, line=n
+                    )
+                values.append([self.number(row[i], name, n) for name, i in self.idx.items()])
+                where.append(n)
+        except csv.Error as exc:
+            raise InputError(f"cannot read trace: {exc}", file=self.path, line=n + 1) from None
+        if values:
+            self.parts.append(np.array(values, dtype=float))
+            self.lines.add(len(where), np.array(where, dtype=np.int64))
+        return n + 1
+
+    def header(self, row: list[str], line: int) -> None:
+        names = [h.strip() for h in row]
+        for i, name in enumerate(names):
+            if name in names[:i]:
+                raise InputError(f"duplicate column '{name}'", file=self.path, line=line)
+        for want in ("t",) + self.needed:
+            if want not in names:
+                raise InputError(
+                    f"missing column '{want}'", file=self.path, line=line, hint=f"columns: {', '.join(names)}"
+                )
+        self.names = names
+        self.idx = {name: names.index(name) for name in ("t",) + self.needed}
+
+    def number(self, cell: str, name: str, line: int) -> float:
+        cell = cell.strip()
+        try:
+            value = float(cell)
+        except ValueError:
+            raise InputError(f"not a number: '{cell}' (column {name})", file=self.path, line=line) from None
+        if not math.isfinite(value):
+            raise InputError(f"not a finite number: '{cell}' (column {name})", file=self.path, line=line)
+        return value
 
 
 def _read_npz(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> Trace:
