@@ -1,8 +1,9 @@
 """The CLI's outputs on the shipped specs, compared with tests/fixtures/golden/.
 
 Compile and automaton outputs must match to the character; seeded trainings to rounding
-(``RTOL``: on this machine they match to the bit, another CPU's libm or BLAS may round
-differently). Regenerate with ``python tests/golden.py`` only for an intended change.
+(``RTOL``), run with numpy held to its portable baseline code (``golden.PORTABLE``: an
+AVX-512 machine's sin and exp round differently, and a training amplifies that).
+Regenerate with ``python tests/golden.py`` only for an intended change.
 """
 
 from __future__ import annotations
