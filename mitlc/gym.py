@@ -338,6 +338,13 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._M = np.tile(np.asarray(rs.net.M0, dtype=np.int64), (1, 1))
         self._k = 0
         self._trace = np.zeros((64, len(self.state_names)))
+        # a tabulated net steps on its marking code: two table look-ups, no marking checks
+        rt = self.runtime
+        self._code: np.ndarray | None = None
+        self._marking_of: np.ndarray | None = None
+        if rt.tables is not None and not rt.counters.size and rt.n_codes * rt.n_places <= 1 << 20:
+            table = rt.tables.markings if rt.tables.markings is not None else rt.decode(np.arange(rt.n_codes))
+            self._marking_of = np.asarray(table, dtype=np.int64)
 
     # ------------------------------------------------------------ observation -> state
     def _reader(self, observe: Observe, base: spaces.Space) -> Callable[[Any], np.ndarray]:
@@ -443,6 +450,8 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._k = 0
         self._trace[0] = x0
         self._M = self.runtime.reset(x0[None, :])
+        if self._marking_of is not None:
+            self._code = self.runtime.encode(self._M)
         info = dict(info)
         info.update(self._info())
         if self._online is not None:
@@ -466,9 +475,14 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 "end there; use truncate_at_horizon=True or a longer horizon",
                 file=self.mitl_spec.path,
             )
-        M_next = self.runtime.step(self._M, x[None, :], self._k * self.dt)
-        reward = float(self.runtime.reward(self._M, M_next)[0])
-        self._M = M_next
+        if self._code is not None and self._marking_of is not None:
+            code1 = self.runtime.step_code(self._code, x[None, :], self._k * self.dt)
+            reward = float(self.runtime.reward_code(self._code, code1)[0])
+            self._code, self._M = code1, self._marking_of[code1]
+        else:
+            M_next = self.runtime.step(self._M, x[None, :], self._k * self.dt)
+            reward = float(self.runtime.reward(self._M, M_next)[0])
+            self._M = M_next
         if self.horizon is not None and self._k * self.dt >= self.horizon - 1e-9 * max(1.0, self.horizon):
             truncated = True
         info = dict(info)
