@@ -14,6 +14,7 @@ __all__ = [
     "MAX_TIME",
     "MAX_FEATURES",
     "MAX_LEARNER_BYTES",
+    "MAX_DENSE_ENTRIES",
     "check_steps",
 ]
 
@@ -48,3 +49,8 @@ def check_steps(duration: float, dt: float, what: str) -> int:
             f"{what}: {duration:g} s at {dt:g} s per step is {steps:,} steps, more than the {MAX_STEPS:,} supported"
         )
     return max(1, int(steps))
+
+
+MAX_DENSE_ENTRIES = 1 << 25
+"""Entries (transitions x places) up to which a net's dense ``D-``, ``D+`` and ``D`` are built
+on request (256 MiB each as int64); a net keeps them sparse and refuses the dense view past it."""

@@ -20,6 +20,13 @@ Given the marking ``M_k``, the next state ``x_k+1`` and the clock
    chain of transitions whose guards hold at once takes one step per arc;
 4. ``M_k+1 = T D + M_k`` with ``T`` the 0/1 row vector of fired transitions.
 
+In a region sub-net (a transition from every place to every other, in that order, each
+guarded by its target's region) the rule moves the token to the first other place whose
+region holds, and leaves it where it is when none does; the runtime computes that
+directly instead of scanning the sub-net's ``n (n - 1)`` transitions, and adds the fired
+rows of ``D`` from the net's sparse ``D-`` and ``D+`` (``NetRuntime._fire_scanning`` is
+the rule as written above, kept as the reference the tests compare with).
+
 Time-triggered transitions (the timeline of an interval, the deadline of a
 bounded until) are ordinary transitions whose guard is a clock condition; they
 fire on the first step whose ``tau_k+1`` satisfies it.
@@ -74,7 +81,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.petri.compile import RewardSystem
-from mitlc.petri.net import eval_state
+from mitlc.petri.net import Net, eval_state
 from mitlc.petri.timed import TimedState
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
@@ -99,6 +106,71 @@ def compile_predicate(p: P.Pred, columns: Mapping[str, int]) -> Callable[[np.nda
         return lambda x: x[:, i]
 
     return P.compile_numpy(p, column)
+
+
+def _change_rows(net: Net, transitions: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The row of ``D = D+ - D-`` of each of ``transitions``, as its nonzero columns and values, from
+    the sparse ``D-`` and ``D+`` (a place both taken from and fed cancels, as in the dense difference)."""
+    pre, post = net.pre, net.post
+    out = {}
+    for t in transitions.tolist():
+        change: dict[int, int] = {}
+        for sign, inc in ((1, post), (-1, pre)):
+            cols, vals = inc.row(t)
+            for c, v in zip(cols.tolist(), vals.tolist(), strict=True):
+                change[c] = change.get(c, 0) + sign * v
+        kept = sorted((c, v) for c, v in change.items() if v)
+        out[t] = (np.array([c for c, _ in kept], dtype=np.intp), np.array([v for _, v in kept], dtype=np.int64))
+    return out
+
+
+def _region_subnets(net: Net) -> list[tuple[int, list[A.Formula | None]]]:
+    """The sub-nets stepped by their region, with the region (state formula) of each place.
+
+    A sub-net qualifies when its transitions are exactly, in net order, one from every place
+    ``i`` to every other place ``j`` (``i`` major, ``j`` increasing), each taking the one token
+    of ``i`` and putting it in ``j`` and guarded by one term, a state formula and nothing else,
+    the same formula on every transition into ``j`` (:func:`mitlc.petri.regions.region_net`).
+    The rule then moves the token from ``i`` to the first ``j != i`` whose formula holds.
+    """
+    by_subnet: dict[int, list[int]] = {}
+    for t, tr in enumerate(net.transitions):
+        by_subnet.setdefault(tr.subnet, []).append(t)
+
+    pre_col, post_col = net.pre.single_columns(), net.post.single_columns()  # -1: not one token
+    out = []
+    for s, sub in enumerate(net.subnets):
+        places, ts = sub.places, by_subnet.get(s, [])
+        K = len(places)
+        if K < 2 or sub.counters or len(ts) != K * (K - 1) or list(sub.transitions) != ts:
+            continue
+        formulas: list[A.Formula | None] = [None] * K
+        ok = True
+        k = 0
+        for i in range(K):
+            for j in range(K):
+                if i == j:
+                    continue
+                t = ts[k]
+                k += 1
+                terms = net.transitions[t].guard.terms
+                if pre_col[t] != places[i] or post_col[t] != places[j] or len(terms) != 1:
+                    ok = False
+                    break
+                term = terms[0]
+                if term.state is None or term.clock is not None or term.age is not None or term.event is not None:
+                    ok = False
+                    break
+                if formulas[j] is None:
+                    formulas[j] = term.state
+                elif formulas[j] is not term.state and formulas[j] != term.state:
+                    ok = False
+                    break
+            if not ok:
+                break
+        if ok:
+            out.append((s, formulas))
+    return out
 
 
 class NetRuntime:
@@ -138,7 +210,15 @@ class NetRuntime:
         self._src = np.array([net.place_index(t.inputs[0]) for t in net.transitions], dtype=np.intp)
         self._dst = np.array([net.place_index(t.outputs[0]) for t in net.transitions], dtype=np.intp)
         self._t_subnet = np.array([t.subnet for t in net.transitions], dtype=np.intp)
-        self._D = np.asarray(net.D)
+        # region sub-nets (a transition from every place to every other, guarded by the target's
+        # region): stepped by the region that holds (_region_move); the rest transition by transition
+        self._regions = _region_subnets(net)
+        in_region = {s for s, _ in self._regions}
+        self._scan = np.array(
+            [t for t, sub in enumerate(self._t_subnet.tolist()) if sub not in in_region], dtype=np.intp
+        )
+        # the scanned transitions' rows of D = D+ - D-, as (places, changes), from the sparse D-, D+
+        self._d_rows = _change_rows(net, self._scan)
 
         # distinct clock intervals of all guards, for the clock code
         clocks: list[A.Interval] = []
@@ -169,8 +249,14 @@ class NetRuntime:
 
         # state sub-nets: the region of each place (the state guard into it)
         self._region_of: dict[int, A.Formula] = {}
-        for sub in net.subnets:
+        regions = dict(self._regions)
+        for s_index, sub in enumerate(net.subnets):
             if sub.kind != "state":
+                continue
+            if s_index in regions:  # every transition into a place has the one guard, its region
+                self._region_of.update(
+                    (int(p), f) for p, f in zip(sub.places, regions[s_index], strict=True) if f is not None
+                )
                 continue
             for t_index in sub.transitions:
                 tr = net.transitions[t_index]
@@ -303,11 +389,19 @@ class NetRuntime:
         )
 
     # ------------------------------------------------------------ the rule itself
-    def _guards(self, truth: Mapping[str, np.ndarray], clock_truth: Sequence[np.ndarray | bool], n: int) -> np.ndarray:
-        """Guard values ``(T, n)`` given atom truth and the truth of each clock interval."""
-        out = np.zeros((len(self.net.transitions), n), dtype=bool)
-        for t, tr in enumerate(self.net.transitions):
-            for term in tr.guard.terms:
+    def _guards(
+        self,
+        truth: Mapping[str, np.ndarray],
+        clock_truth: Sequence[np.ndarray | bool],
+        n: int,
+        transitions: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Guard values ``(T, n)`` given atom truth and the truth of each clock interval
+        (of ``transitions`` only, in that order, when given)."""
+        ts = range(len(self.net.transitions)) if transitions is None else transitions.tolist()
+        out = np.zeros((len(ts), n), dtype=bool)
+        for k, t in enumerate(ts):
+            for term in self.net.transitions[t].guard.terms:
                 if term.event is not None:  # moved by the obligation state, not by the tables
                     continue
                 ok = np.ones(n, dtype=bool)
@@ -315,11 +409,12 @@ class NetRuntime:
                     ok = ok & eval_state(term.state, truth)
                 if term.clock is not None:
                     ok = ok & clock_truth[self.clocks.index(term.clock)]
-                out[t] |= ok
+                out[k] |= ok
         return out
 
-    def _fire(self, M: np.ndarray, guards: np.ndarray) -> np.ndarray:
-        """The documented rule: per sub-net the first enabled transition with a true guard."""
+    def _fire_scanning(self, M: np.ndarray, guards: np.ndarray) -> np.ndarray:
+        """The documented rule transition by transition, ``T D + M`` with the dense ``D``: the
+        reference that :meth:`_fire` (region sub-nets by their region) is tested against."""
         n = M.shape[0]
         taken = np.zeros((n, self.n_subnets), dtype=bool)
         T = np.zeros((n, len(self.net.transitions)), dtype=np.int64)
@@ -328,16 +423,74 @@ class NetRuntime:
             fire = (M[:, self._src[t]] > 0) & guards[t] & ~taken[:, s]
             T[:, t] = fire
             taken[:, s] |= fire
-        return T @ self._D + M
+        return T @ np.asarray(self.net.D) + M
+
+    def _region_move(
+        self, formulas: Sequence[A.Formula | None], here: np.ndarray, truth: Mapping[str, np.ndarray]
+    ) -> np.ndarray:
+        """Where a region sub-net's token goes from local place ``here`` ``(n,)``: the rule's first
+        transition in net order, from ``here`` to the first other place whose region holds;
+        nowhere (it stays) when no other region holds."""
+        n = here.shape[0]
+        holds = np.zeros((n, len(formulas)), dtype=bool)
+        for j, f in enumerate(formulas):
+            if f is not None:
+                holds[:, j] = eval_state(f, truth)
+        holds[np.arange(n), here] = False  # no transition from a place to itself
+        return np.where(holds.any(axis=1), holds.argmax(axis=1), here)
+
+    def _fire(
+        self, M: np.ndarray, truth: Mapping[str, np.ndarray], clock_truth: Sequence[np.ndarray | bool]
+    ) -> np.ndarray:
+        """The documented rule: per sub-net the first enabled transition with a true guard.
+
+        Region sub-nets move to the first other region that holds (:meth:`_region_move`), the
+        others are scanned transition by transition; ``M + sum of the fired rows of D``,
+        from the sparse rows. Equal to :meth:`_fire_scanning` (tested).
+        """
+        n = M.shape[0]
+        marked = [M[:, self.subnet_places[s]] > 0 for s, _ in self._regions]
+        if np.any(M < 0) or any(np.any(m.sum(axis=1) > 1) for m in marked):
+            # not one token per region sub-net: the reference rule as it is
+            return self._fire_scanning(M, self._guards(truth, clock_truth, n))
+        out = np.array(M, dtype=np.int64)
+        rows = np.arange(n)
+        for (s, formulas), m in zip(self._regions, marked, strict=True):
+            places = self.subnet_places[s]
+            here = np.argmax(m, axis=1)
+            there = self._region_move(formulas, here, truth)
+            moved = (there != here) & m.any(axis=1)  # a sub-net without its token stays empty
+            out[rows[moved], places[here[moved]]] -= 1
+            out[rows[moved], places[there[moved]]] += 1
+        guards = self._guards(truth, clock_truth, n, self._scan)
+        taken = np.zeros((n, self.n_subnets), dtype=bool)
+        for k, t in enumerate(self._scan.tolist()):
+            s = self._t_subnet[t]
+            fire = (M[:, self._src[t]] > 0) & guards[k] & ~taken[:, s]
+            if not fire.any():
+                continue
+            taken[:, s] |= fire
+            cols, change = self._d_rows[t]
+            out[np.ix_(np.flatnonzero(fire), cols)] += change
+        return out
 
     def step_direct(self, M: np.ndarray, x_next: np.ndarray, tau_next: np.ndarray | float) -> np.ndarray:
-        """:meth:`step` computed transition by transition (no tables); the reference."""
+        """:meth:`step` computed from the rule (no tables); the reference."""
         M = self._check_marking(M)
         n = M.shape[0]
         truth = self.truth(x_next)
         tau = np.broadcast_to(np.asarray(tau_next, dtype=float), (n,))
         clock_truth = [_clock_ok(c, tau) for c in self.clocks]
-        return self._fire(M, self._guards(truth, clock_truth, n))
+        return self._fire(M, truth, clock_truth)
+
+    def _step_scanning(self, M: np.ndarray, x_next: np.ndarray, tau_next: np.ndarray | float) -> np.ndarray:
+        """:meth:`step_direct` by the transition-scanning rule everywhere (:meth:`_fire_scanning`)."""
+        M = self._check_marking(M)
+        n = M.shape[0]
+        truth = self.truth(x_next)
+        tau = np.broadcast_to(np.asarray(tau_next, dtype=float), (n,))
+        clock_truth = [_clock_ok(c, tau) for c in self.clocks]
+        return self._fire_scanning(M, self._guards(truth, clock_truth, n))
 
     # ------------------------------------------------------------ timed obligations
     def _timed_observe(self, x: np.ndarray) -> list[tuple[int, np.ndarray]]:
@@ -510,7 +663,7 @@ class NetRuntime:
         next_code = np.empty((n_clock_codes, n_codes, n_atom_codes), dtype=np.int64)
         for ck in range(n_clock_codes):
             clock_truth = [bool((ck >> i) & 1) for i in range(n_clocks)]
-            nxt = self._fire(M, self._guards(truth, clock_truth, M.shape[0]))
+            nxt = self._fire(M, truth, clock_truth)
             next_code[ck] = self.encode(nxt).reshape(n_codes, n_atom_codes)
         marked = (
             np.stack(
@@ -625,12 +778,14 @@ class NetRuntime:
             reps_seg = np.tile(seg_of, len(layer))
             truth = {a: ((reps_atom >> i) & 1).astype(bool) for i, a in enumerate(self.atoms)}
             clock_truth = [seg_truth[reps_seg, c] for c in range(len(self.clocks))]
-            guards = self._guards(truth, clock_truth, L.shape[0])
+            guards = self._guards(truth, clock_truth, L.shape[0], self._scan)
             nxt = L.copy()
+            for sub, formulas in self._regions:
+                nxt[:, sub] = self._region_move(formulas, L[:, sub], truth)
             taken = np.zeros(L.shape, dtype=bool)
-            for t in range(len(self.net.transitions)):
+            for k, t in enumerate(self._scan.tolist()):
                 sub = self._t_subnet[t]
-                fire = (L[:, sub] == src_local[t]) & guards[t] & ~taken[:, sub]
+                fire = (L[:, sub] == src_local[t]) & guards[k] & ~taken[:, sub]
                 nxt[fire, sub] = dst_local[t]
                 taken[:, sub] |= fire
             ids = add(nxt).reshape(len(layer), n_segs, n_atom_codes)

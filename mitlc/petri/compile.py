@@ -37,7 +37,7 @@ import numpy as np
 
 from mitlc.errors import CompileError
 from mitlc.petri import reward as R
-from mitlc.petri.net import Guard, GuardTerm, Net, Place, SubNet, Transition
+from mitlc.petri.net import Guard, GuardTerm, Incidence, Net, Place, SubNet, Transition
 from mitlc.petri.parts import Arc, Part, tokens
 from mitlc.petri.reading import (
     conjoin,
@@ -142,6 +142,7 @@ class _Builder(ViolationWatches):
         self.end = _last_sample(spec)
         self.cache: dict[object, list[str]] = {}  # one timing sub-net per distinct subformula
         self.used_names: set[str] = set()
+        self.next_suffix: dict[str, int] = {}  # base name -> the suffix _unique tries first
         self.counter = 0
         names = A.atoms(formula)
         for n in names:
@@ -156,6 +157,8 @@ class _Builder(ViolationWatches):
                 pos = [f"p_{a}"]
                 self.where[a] = (pos, [n for n in all_names if n not in pos])
         self.thresholds = formula_thresholds(_masked(formula, self.roots))
+        # threshold -> its place in clock order (the thresholds are distinct)
+        self.threshold_index = {t: i for i, t in enumerate(self.thresholds)}
         self.segments: list[str] = []
         if self.thresholds:
             line = timeline_net(self.thresholds, self._unique)
@@ -164,11 +167,17 @@ class _Builder(ViolationWatches):
 
     # -- naming
     def _unique(self, name: str) -> str:
-        base, k = name, 1
+        """``name``, else ``name_2``, ``name_3``, ...: the first unused. Names are never freed, so
+        the search for a base resumes where its last one ended (linear, not quadratic, in the
+        number of places sharing a base: a thousand eventuallys of one proposition)."""
+        base, k = name, self.next_suffix.get(name, 1)
+        if k > 1:
+            name = f"{base}_{k}"
         while name in self.used_names:
             k += 1
             name = f"{base}_{k}"
         self.used_names.add(name)
+        self.next_suffix[base] = k
         return name
 
     def _label(self, f: A.Formula, prefix: str) -> str:
@@ -183,8 +192,8 @@ class _Builder(ViolationWatches):
     def _phase(self, interval: A.Interval) -> frozenset[int]:
         n = len(self.segments)
         lo, hi = lower(interval), upper(interval)
-        start = 0 if lo is None else self.thresholds.index(lo) + 1
-        stop = n if hi is None else self.thresholds.index(hi) + 1
+        start = 0 if lo is None else self.threshold_index[lo] + 1
+        stop = n if hi is None else self.threshold_index[hi] + 1
         return frozenset(range(start, stop))
 
     def _all(self) -> frozenset[int]:
@@ -330,7 +339,7 @@ class _Builder(ViolationWatches):
     def _until(self, f: A.Until, ctx: frozenset[int], under_g: bool, conj: bool) -> R.RExpr:
         lo = lower(f.interval)
         if lo is not None:  # time-triggered switch on the timeline (the thesis's C-5)
-            k = self.thresholds.index(lo) + 1
+            k = self.threshold_index[lo] + 1
             before = frozenset(range(k)) & ctx
             after = frozenset(range(k, len(self.segments))) & ctx
             if conj and before and is_state_formula(f.left):
@@ -515,40 +524,60 @@ class _Builder(ViolationWatches):
     def assemble(self, reward: R.RExpr) -> tuple[Net, R.RExpr]:
         subs = self.timing + self.state + self.violation_nets
         places: list[Place] = []
-        transitions: list[tuple[str, Guard, str, tuple[str, ...], int]] = []
         m0: list[int] = []
-        subnets: list[SubNet] = []
         for s_idx, sub in enumerate(subs):
-            base = len(places)
             for k, (name, label) in enumerate(sub.places):
                 places.append(Place(name, "counter" if k in sub.counters else sub.kind, s_idx, label))
                 m0.append(1 if k == sub.initial else 0)
-            t_base = len(transitions)
-            for src, dst, guard in sub.arcs:
-                outs = tuple(sub.places[d][0] for d in (dst if isinstance(dst, tuple) else (dst,)))
-                transitions.append((f"t{len(transitions) + 1}", guard, sub.places[src][0], outs, s_idx))
+        index = {p.name: i for i, p in enumerate(places)}
+        # per arc, in net order: guard, input place, output places (names and indices); a
+        # region net of n places has n (n - 1) arcs, so this is kept to list comprehensions
+        guards: list[Guard] = []
+        ins: list[tuple[str, ...]] = []
+        outs: list[tuple[str, ...]] = []
+        t_subnet: list[int] = []
+        src: list[int] = []
+        out_rows: list[int] = []
+        out_cols: list[int] = []
+        subnets: list[SubNet] = []
+        base = 0
+        for s_idx, sub in enumerate(subs):
+            names = [name for name, _ in sub.places]
+            glob = [index[name] for name in names]
+            one = [(name,) for name in names]  # one tuple per place, shared by the arcs through it
+            t_base = len(guards)
+            arcs = sub.arcs
+            guards += [g for _, _, g in arcs]
+            ins += [one[i] for i, _, _ in arcs]
+            src += [glob[i] for i, _, _ in arcs]
+            dsts = [d if isinstance(d, tuple) else (d,) for _, d, _ in arcs]
+            outs += [one[d[0]] if len(d) == 1 else tuple(names[j] for j in d) for d in dsts]
+            out_rows += [t_base + t for t, d in enumerate(dsts) for _ in d]
+            out_cols += [glob[j] for d in dsts for j in d]
+            t_subnet += [s_idx] * len(arcs)
             own = [base + k for k in range(len(sub.places))]
+            base += len(sub.places)
             subnets.append(
                 SubNet(
                     sub.name,
                     sub.kind,
                     sub.role,
                     tuple(i for k, i in enumerate(own) if k not in sub.counters),
-                    tuple(range(t_base, len(transitions))),
+                    tuple(range(t_base, len(guards))),
                     sub.formula,
                     tuple(i for k, i in enumerate(own) if k in sub.counters),
                 )
             )
-        index = {p.name: i for i, p in enumerate(places)}
-        d_minus = np.zeros((len(transitions), len(places)), dtype=np.int64)
-        d_plus = np.zeros_like(d_minus)
-        trans = []
-        for t, (name, guard, src_name, outs, s_idx) in enumerate(transitions):
-            d_minus[t, index[src_name]] = 1
-            for dst_name in outs:
-                d_plus[t, index[dst_name]] = 1
-            trans.append(Transition(name, guard, (src_name,), outs, s_idx))
-        net = Net(tuple(places), tuple(trans), tuple(subnets), d_minus, d_plus, np.array(m0, dtype=np.int64))
+        n_t = len(guards)
+        # D- and D+ in compressed rows (dense, a 500-place region net would be 250,000 x 1,500)
+        shape = (n_t, len(places))
+        pre = Incidence.ones(shape, np.arange(n_t), src)
+        post = Incidence.ones(shape, out_rows, out_cols)
+        trans = [
+            Transition(f"t{t + 1}", g, i, o, s)
+            for t, (g, i, o, s) in enumerate(zip(guards, ins, outs, t_subnet, strict=True))
+        ]
+        net = Net(tuple(places), tuple(trans), tuple(subnets), pre, post, np.array(m0, dtype=np.int64))
         return net, _resolve(reward, index)
 
 

@@ -19,6 +19,7 @@ import xml.etree.ElementTree as ET
 from typing import Any
 
 import networkx as nx
+import numpy as np
 
 from mitlc.fileio import json_text
 from mitlc.petri import reward as R
@@ -157,9 +158,14 @@ def to_text(rs: RewardSystem) -> str:
     if net.transitions:
         widths = [len(p.name) for p in net.places]
         out.append("  " + " " * tw + "  " + "  ".join(p.name for p in net.places))
-        for t, row in zip(net.transitions, net.D, strict=True):
-            cells = "  ".join(f"{int(v):>{w}d}" for v, w in zip(row, widths, strict=True))
-            out.append(f"  {t.name.ljust(tw)}  {cells}")
+        row = np.zeros(len(net.places), dtype=np.int64)
+        for k, tr in enumerate(net.transitions):  # each row from the sparse D- and D+, not a dense D
+            row[:] = 0
+            for sign, inc in ((1, net.post), (-1, net.pre)):
+                cols, vals = inc.row(k)
+                row[cols] += sign * vals
+            cells = "  ".join(f"{int(v):>{w}d}" for v, w in zip(row.tolist(), widths, strict=True))
+            out.append(f"  {tr.name.ljust(tw)}  {cells}")
     else:
         out.append("  (no transitions)")
     out.append("")

@@ -5,6 +5,13 @@ Shapes follow the thesis (section 2-3-2): ``D_minus``, ``D_plus`` and
 marking is a row vector over places and firing the transitions selected by the
 row vector ``T`` gives ``M' = T D + M`` (2-26).
 
+The net stores ``D-`` and ``D+`` sparse (:class:`Incidence`, compressed rows:
+almost every transition has one input and one output place, and a region net
+of ``n`` places has ``n (n - 1)`` transitions); the dense matrices are views
+computed on first use and kept, for nets of at most
+:data:`~mitlc.limits.MAX_DENSE_ENTRIES` entries, and refused with a
+:class:`~mitlc.errors.CompileError` naming the size past it.
+
 Every sub-net holds exactly one token.  A transition's guard is a
 disjunction of terms, each a state condition over the propositions (evaluated
 on ``x_k+1``) and/or a condition on the trial clock ``tau``.
@@ -16,13 +23,16 @@ import itertools
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from mitlc.errors import CompileError
+from mitlc.limits import MAX_DENSE_ENTRIES
 from mitlc.spec import ast as A
 from mitlc.spec.ast import fmt_number
 
-__all__ = ["Place", "GuardTerm", "Guard", "Transition", "SubNet", "Net", "eval_state", "clock_text"]
+__all__ = ["Place", "GuardTerm", "Guard", "Transition", "SubNet", "Incidence", "Net", "eval_state", "clock_text"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,37 +199,211 @@ class SubNet:
     counters: tuple[int, ...] = ()
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=np.int64)
+def _frozen(a: Any, dtype: type = np.int64) -> np.ndarray:
+    a = np.array(a, dtype=dtype)
     a.setflags(write=False)
     return a
 
 
+class Incidence:
+    """A ``(transitions, places)`` integer matrix in compressed rows (CSR), read-only.
+
+    Row ``t``'s nonzero entries are ``data[indptr[t]:indptr[t + 1]]`` in the columns
+    ``indices[indptr[t]:indptr[t + 1]]``, increasing; no stored entry is zero, so two
+    equal matrices have equal arrays.
+
+    >>> a = Incidence.from_dense(np.array([[1, 0, 0], [0, 2, 1]]))
+    >>> a.indptr.tolist(), a.indices.tolist(), a.data.tolist()
+    ([0, 1, 3], [0, 1, 2], [1, 2, 1])
+    >>> a.left_multiply(np.array([1, 1])).tolist()     # x @ A
+    [1, 2, 1]
+    """
+
+    __slots__ = ("shape", "indptr", "indices", "data")
+    shape: tuple[int, int]
+    indptr: np.ndarray
+    indices: np.ndarray
+    data: np.ndarray
+
+    def __init__(self, shape: tuple[int, int], indptr: Any, indices: Any, data: Any) -> None:
+        rows, cols = (int(shape[0]), int(shape[1]))
+        indptr, indices, data = _frozen(indptr), _frozen(indices), _frozen(data)
+        if indptr.shape != (rows + 1,) or indices.shape != data.shape or indices.ndim != 1:
+            raise ValueError("malformed compressed rows")
+        if indptr[0] != 0 or indptr[-1] != len(indices) or np.any(np.diff(indptr) < 0):
+            raise ValueError("malformed compressed rows")
+        if len(indices) and (indices.min() < 0 or indices.max() >= cols):
+            raise ValueError(f"column index outside 0..{cols - 1}")
+        for name, value in (("shape", (rows, cols)), ("indptr", indptr), ("indices", indices), ("data", data)):
+            object.__setattr__(self, name, value)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError("an Incidence is read-only")
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Incidence):
+            return NotImplemented
+        return (
+            self.shape == other.shape
+            and np.array_equal(self.indptr, other.indptr)
+            and np.array_equal(self.indices, other.indices)
+            and np.array_equal(self.data, other.data)
+        )
+
+    __hash__ = None  # type: ignore[assignment]  # equality by value on arrays
+
+    def __repr__(self) -> str:
+        return f"Incidence({self.shape[0]} x {self.shape[1]}, {self.nnz} entries)"
+
+    @staticmethod
+    def from_dense(a: Any) -> Incidence:
+        a = np.asarray(a, dtype=np.int64)
+        if a.ndim != 2:
+            raise ValueError(f"a (transitions, places) matrix, got shape {a.shape}")
+        rows, cols = np.nonzero(a)
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=a.shape[0]))])
+        return Incidence(a.shape, indptr, cols, a[rows, cols])
+
+    @staticmethod
+    def ones(shape: tuple[int, int], rows: Any, cols: Any) -> Incidence:
+        """The 0/1 matrix with ones at ``(rows[k], cols[k])`` (a pair given twice is still 1)."""
+        rows, cols = np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
+        if rows.shape != cols.shape or rows.ndim != 1:
+            raise ValueError("rows and cols must be equal-length vectors")
+        if len(rows) and (rows.min() < 0 or rows.max() >= shape[0]):
+            raise ValueError(f"row index outside 0..{shape[0] - 1}")
+        key = rows * max(int(shape[1]), 1) + cols
+        if len(key) > 1 and not np.all(key[1:] > key[:-1]):  # already sorted and distinct: as they are
+            key = np.unique(key)
+        r, c = np.divmod(key, max(int(shape[1]), 1))
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=shape[0]))])
+        return Incidence(shape, indptr, c, np.ones(len(c), dtype=np.int64))
+
+    @property
+    def nnz(self) -> int:
+        return len(self.indices)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the three arrays."""
+        return int(self.indptr.nbytes + self.indices.nbytes + self.data.nbytes)
+
+    def row_of_entries(self) -> np.ndarray:
+        """The row of every stored entry, ``(nnz,)``."""
+        return np.repeat(np.arange(self.shape[0], dtype=np.int64), np.diff(self.indptr))
+
+    def row(self, t: int) -> tuple[np.ndarray, np.ndarray]:
+        """Row ``t``'s columns and values."""
+        a, b = self.indptr[t], self.indptr[t + 1]
+        return self.indices[a:b], self.data[a:b]
+
+    def single_columns(self) -> np.ndarray:
+        """Each row's column where the row is a single 1, -1 where it is anything else, ``(rows,)``."""
+        if not self.nnz:
+            return np.full(self.shape[0], -1, dtype=np.int64)
+        first = np.minimum(self.indptr[:-1], self.nnz - 1)
+        one = (np.diff(self.indptr) == 1) & (self.data[first] == 1)
+        return np.where(one, self.indices[first], -1)
+
+    def toarray(self) -> np.ndarray:
+        out = np.zeros(self.shape, dtype=np.int64)
+        out[self.row_of_entries(), self.indices] = self.data
+        return out
+
+    def transpose(self) -> Incidence:
+        rows = self.row_of_entries()
+        order = np.lexsort((rows, self.indices))  # by column, then row
+        cols = self.indices[order]
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=self.shape[1]))])
+        return Incidence((self.shape[1], self.shape[0]), indptr, rows[order], self.data[order])
+
+    def left_multiply(self, x: Any) -> np.ndarray:
+        """``x @ A`` for ``x`` of shape ``(..., rows)`` (integers stay exact)."""
+        x = np.asarray(x)
+        if x.shape[-1:] != (self.shape[0],):
+            raise ValueError(f"matmul: {x.shape} @ {self.shape}")
+        contrib = x[..., self.row_of_entries()] * self.data  # (..., nnz)
+        out = np.zeros((self.shape[1], *x.shape[:-1]), dtype=contrib.dtype)
+        np.add.at(out, self.indices, np.moveaxis(contrib, -1, 0))
+        return np.moveaxis(out, 0, -1)
+
+
+def _incidence(a: Incidence | np.ndarray, shape: tuple[int, int], name: str) -> tuple[Incidence, np.ndarray | None]:
+    """``a`` as an :class:`Incidence` and, when it came dense, its frozen dense array."""
+    if isinstance(a, Incidence):
+        if a.shape != shape:
+            raise ValueError(f"D matrices must be {shape}")
+        return a, None
+    dense = _frozen(a)
+    if dense.shape != shape:
+        raise ValueError(f"D matrices must be {shape}")
+    return Incidence.from_dense(dense), dense
+
+
 @dataclass(frozen=True)
 class Net:
-    """A composed reward Petri net."""
+    """A composed reward Petri net.
+
+    ``pre`` (``D-``) and ``post`` (``D+``) may be given dense (``(transitions, places)``
+    arrays, as before) or as :class:`Incidence`; the net keeps them sparse and
+    :attr:`D_minus`, :attr:`D_plus` and :attr:`D` are their dense views.
+    """
 
     places: tuple[Place, ...]
     transitions: tuple[Transition, ...]
     subnets: tuple[SubNet, ...]
-    D_minus: np.ndarray = field(repr=False)
-    D_plus: np.ndarray = field(repr=False)
+    pre: Incidence = field(repr=False)
+    """``D-`` in compressed rows: the places each transition takes a token from."""
+    post: Incidence = field(repr=False)
+    """``D+`` in compressed rows: the places each transition puts a token in."""
     M0: np.ndarray = field(repr=False)
+    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "D_minus", _frozen(self.D_minus))
-        object.__setattr__(self, "D_plus", _frozen(self.D_plus))
-        object.__setattr__(self, "M0", _frozen(self.M0))
         shape = (len(self.transitions), len(self.places))
-        if self.D_minus.shape != shape or self.D_plus.shape != shape:
-            raise ValueError(f"D matrices must be {shape}")
+        pre, dense_minus = _incidence(self.pre, shape, "D_minus")
+        post, dense_plus = _incidence(self.post, shape, "D_plus")
+        object.__setattr__(self, "pre", pre)
+        object.__setattr__(self, "post", post)
+        object.__setattr__(self, "M0", _frozen(self.M0))
+        if dense_minus is not None:
+            self._cache["D_minus"] = dense_minus
+        if dense_plus is not None:
+            self._cache["D_plus"] = dense_plus
+
+    def _dense(self, name: str) -> np.ndarray:
+        got = self._cache.get(name)
+        if got is not None:
+            return got
+        T, P = self.pre.shape
+        if T * P > MAX_DENSE_ENTRIES:
+            raise CompileError(
+                f"the net's {name} would be a dense {T:,} x {P:,} matrix ({T * P:,} entries, "
+                f"{8 * T * P / 2**30:.1f} GiB), more than the {MAX_DENSE_ENTRIES:,} entries supported; "
+                "its sparse form is net.pre / net.post"
+            )
+        if name == "D":
+            d = self.D_plus - self.D_minus
+        else:
+            d = (self.pre if name == "D_minus" else self.post).toarray()
+        d.setflags(write=False)
+        self._cache[name] = d
+        return d
+
+    @property
+    def D_minus(self) -> np.ndarray:
+        """``D-`` dense, ``(transitions, places)``: computed on first use (refused past the size limit)."""
+        return self._dense("D_minus")
+
+    @property
+    def D_plus(self) -> np.ndarray:
+        """``D+`` dense, ``(transitions, places)``: computed on first use (refused past the size limit)."""
+        return self._dense("D_plus")
 
     @property
     def D(self) -> np.ndarray:
         """The composite change matrix ``D = D+ - D-`` (transitions x places)."""
-        d = self.D_plus - self.D_minus
-        d.setflags(write=False)
-        return d
+        return self._dense("D")
 
     @property
     def counters(self) -> tuple[int, ...]:
@@ -228,25 +412,40 @@ class Net:
 
     @property
     def place_names(self) -> tuple[str, ...]:
-        return tuple(p.name for p in self.places)
+        got = self._cache.get("place_names")
+        if got is None:
+            got = self._cache["place_names"] = tuple(p.name for p in self.places)
+        return got
 
     @property
     def transition_names(self) -> tuple[str, ...]:
         return tuple(t.name for t in self.transitions)
 
     def place_index(self, name: str) -> int:
-        return self.place_names.index(name)
+        index = self._cache.get("place_index")
+        if index is None:
+            index = {}
+            for i, n in enumerate(self.place_names):
+                index.setdefault(n, i)
+            self._cache["place_index"] = index
+        try:
+            return index[name]
+        except KeyError:
+            raise ValueError(f"{name!r} is not a place of the net") from None
 
     def fire(self, marking: np.ndarray, fired: np.ndarray) -> np.ndarray:
         """``M' = T D + M`` for row vectors (or a batch of rows) ``fired`` and ``marking``."""
-        return fired @ self.D + marking
+        fired = np.asarray(fired)
+        return self.post.left_multiply(fired) - self.pre.left_multiply(fired) + marking
 
     def successors(self, place: int) -> tuple[int, ...]:
         """Places a token in ``place`` can move to in one transition."""
+        by_input = self._cache.get("by_input")
+        if by_input is None:
+            by_input = self._cache["by_input"] = self.pre.transpose()
         out: list[int] = []
-        for t in range(len(self.transitions)):
-            if self.D_minus[t, place]:
-                out.extend(int(j) for j in np.flatnonzero(self.D_plus[t]))
+        for t in by_input.row(place)[0].tolist():
+            out.extend(self.post.row(t)[0].tolist())
         return tuple(dict.fromkeys(out))
 
     def reachable_markings(self) -> list[np.ndarray]:
@@ -254,10 +453,11 @@ class Net:
         per_subnet = []
         for sub in self.subnets:
             start = next(i for i in sub.places if self.M0[i])
+            own = set(sub.places)
             seen, stack = {start}, [start]
             while stack:
                 for nxt in self.successors(stack.pop()):
-                    if nxt in sub.places and nxt not in seen:  # counters are not the token's places
+                    if nxt in own and nxt not in seen:  # counters are not the token's places
                         seen.add(nxt)
                         stack.append(nxt)
             per_subnet.append(sorted(seen))

@@ -21,19 +21,66 @@ def state_groups(spec: Spec, names: Sequence[str]) -> tuple[tuple[str, ...], ...
     """Group propositions so that the regions within a group are provably disjoint.
 
     Greedy, in the order given: each proposition joins the first group whose
-    members it is disjoint from, else starts a new group.
+    members it is disjoint from (:func:`~mitlc.spec.predicates.provably_disjoint`
+    with each), else starts a new group.
+
+    Each proposition's region is computed once, and a group keeps, per variable,
+    the union of its members' intervals: a region none of whose boxes meets that
+    union in some variable is disjoint from every member without testing them one
+    by one (500 disjoint intervals of one variable: 500 tests, not 125,000).
+    Otherwise the members are tested one by one, so the groups are exactly those
+    of the pairwise rule.
     """
     doms = spec.domains()
-    groups: list[list[str]] = []
+    groups: list[_Group] = []
     for name in names:
-        pred = spec.prop(name).pred
+        reg = P.region(spec.prop(name).pred, doms)
         for g in groups:
-            if all(P.provably_disjoint(pred, spec.prop(m).pred, doms) for m in g):
-                g.append(name)
+            if g.admits(reg, doms):
+                g.add(name, reg, doms)
                 break
         else:
-            groups.append([name])
-    return tuple(tuple(g) for g in groups)
+            g = _Group()
+            g.add(name, reg, doms)
+            groups.append(g)
+    return tuple(tuple(g.names) for g in groups)
+
+
+class _Group:
+    """A group of :func:`state_groups` under construction: its members' regions and, for each
+    variable that every one of their boxes constrains, the union of those boxes' intervals."""
+
+    def __init__(self) -> None:
+        self.names: list[str] = []
+        self.regions: list[P.Region] = []
+        self.known = True  # every member's region is known (else nothing is provably disjoint from it)
+        self.hull: dict[str, P.IntervalSet] | None = None  # None: no box yet
+
+    def add(self, name: str, reg: P.Region | None, doms: P.Domains) -> None:
+        self.names.append(name)
+        if reg is None:
+            self.known = False
+            return
+        self.regions.append(reg)
+        for box in reg:
+            constrained = dict(box)
+            if self.hull is None:
+                self.hull = constrained
+                continue
+            for v in list(self.hull):  # a variable some box leaves free is dropped for good
+                if v in constrained:
+                    self.hull[v] = self.hull[v].union(constrained[v])
+                else:
+                    del self.hull[v]
+
+    def admits(self, reg: P.Region | None, doms: P.Domains) -> bool:
+        """True if ``reg`` is provably disjoint from every member's region."""
+        if reg is None or not self.known:
+            return False
+        hull = self.hull or {}
+        if all(any(v in hull and s.intersect(hull[v]).is_empty for v, s in box) for box in reg):
+            return True  # each box misses, in some variable, the interval of every member's box
+        return all(P.regions_disjoint(reg, other, doms) for other in self.regions)
 
 
 def covers(spec: Spec, members: Sequence[str]) -> bool:
@@ -62,9 +109,8 @@ def region_net(spec: Spec, group: tuple[str, ...], unique: Callable[[str], str])
             for a in group[1:]:
                 none = A.And(none, A.Not(A.Atom(a)))
             regions.append(none)
-    arcs: list[Arc] = [
-        (i, j, Guard.state(regions[j])) for i in range(len(places)) for j in range(len(places)) if i != j
-    ]
+    guards = [Guard.state(r) for r in regions]  # one guard per target, shared by the arcs into it
+    arcs: list[Arc] = [(i, j, guards[j]) for i in range(len(places)) for j in range(len(places)) if i != j]
     initial = initial_region(spec, group, whole)
     return Part(f"region({', '.join(group)})", "state", "region", places, arcs, initial)
 

@@ -50,7 +50,9 @@ __all__ = [
     "IntervalSet",
     "Box",
     "Region",
+    "Domains",
     "region",
+    "regions_disjoint",
     "provably_disjoint",
     "provably_empty",
     "readable_name",
@@ -631,7 +633,12 @@ def provably_disjoint(a: Pred, b: Pred, domains: Domains | None = None) -> bool:
     ra, rb = region(a, doms), region(b, doms)
     if ra is None or rb is None:
         return False
-    return not _and(ra, rb, doms)
+    return regions_disjoint(ra, rb, doms)
+
+
+def regions_disjoint(a: Region, b: Region, domains: Domains | None = None) -> bool:
+    """True if no box of ``a`` meets a box of ``b`` (:func:`region`'s results)."""
+    return not _and(a, b, domains or {})
 
 
 def provably_empty(p: Pred, domains: Domains | None = None) -> bool:
