@@ -1,3 +1,3 @@
-from mitlc.cli.main import main
+from mitlc.cli import run
 
-main()
+run()

@@ -212,6 +212,42 @@ def test_ctrl_c_at_start_up_is_exit_130(tmp_path):
     assert "Traceback" not in err and "Aborted" not in err
 
 
+@pytest.mark.parametrize("delay", [0.15, 0.3, 0.5, 0.7, 1.0])
+def test_ctrl_c_at_any_moment_of_start_up_is_exit_130(tmp_path, delay):
+    """While modules load, a SIGINT may land in a weakref callback (Python drops it) or in a
+    dataclass's exec() (CPython then exits by SIGINT, status -2, though mitlc handled it):
+    either way the status is 130 and the training does not run on."""
+    proc = subprocess.Popen(
+        [*MITLC, "train", "--spec", P2, "--runs", "2", "--trials", "100000", "-q", "--out", str(tmp_path / "o")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err
+
+
+def test_a_swallowed_interrupt_is_raised_again() -> None:
+    """The handler remembers the signal; the trainers' callbacks check it."""
+    from mitlc.cli import interrupt
+
+    assert signal.getsignal(signal.SIGINT) is interrupt._handler  # installed with the command line
+    was = interrupt._seen
+    try:
+        interrupt._seen = False
+        interrupt.check()  # nothing pending: no raise
+        with pytest.raises(KeyboardInterrupt):
+            interrupt._handler(signal.SIGINT, None)
+        assert interrupt.pending()
+        with pytest.raises(KeyboardInterrupt):  # as if the first raise had been dropped
+            interrupt.check()
+    finally:
+        interrupt._seen = was
+
+
 def test_ctrl_c_while_writing_keeps_a_checkpoint_to_resume(tmp_path, monkeypatch):
     import mitlc.cli.outputs as outputs
 

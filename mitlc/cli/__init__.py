@@ -10,10 +10,22 @@ May import: every stage.
 
 import sys
 
+from mitlc.cli import interrupt
+
+interrupt.install()  # a Ctrl-C swallowed while modules load is raised again (mitlc.cli.interrupt)
+
 try:  # Ctrl-C while the command line loads: a clean exit 130, not a traceback
     from mitlc.cli.main import main
 except KeyboardInterrupt:  # pragma: no cover - timing; tests/test_reliability.py sends SIGINT at start-up
     sys.stderr.write("interrupted\n")
-    sys.exit(130)
+    interrupt.exit_interrupted(force=True)
 
-__all__ = ["main"]
+
+def run() -> None:
+    """The ``mitlc`` program (console script and ``python -m mitlc``): :func:`main` in a
+    process of its own (:data:`mitlc.cli.interrupt.PROGRAM`)."""
+    interrupt.PROGRAM = True
+    main()
+
+
+__all__ = ["main", "run"]

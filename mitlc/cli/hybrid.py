@@ -30,6 +30,7 @@ from typing import Any
 import click
 import numpy as np
 
+from mitlc.cli import interrupt
 from mitlc.cli.common import atomic_write, handle_errors, output_option, plant_file_option, write_result
 from mitlc.cli.outputs import OutputSet
 from mitlc.errors import InputError, TrainingError
@@ -245,11 +246,13 @@ def _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots
     )
 
     def step(trial: int, returns: np.ndarray) -> None:
+        interrupt.check()
         bar.set_postfix_str(f"mean return {learner.returns[:, -10:].mean():8.1f}", refresh=False)
         bar.update(1)
 
     interrupted = False
     try:
+        interrupt.check()  # a Ctrl-C during start-up that Python dropped
         learner.train(max(0, trials - done_before), step)
     except KeyboardInterrupt:
         interrupted = True

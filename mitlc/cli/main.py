@@ -17,6 +17,7 @@ from typing import Any
 import click
 
 from mitlc import __version__
+from mitlc.cli import interrupt
 
 __all__ = ["main", "COMMANDS"]
 
@@ -94,7 +95,11 @@ class _Group(click.Group):
             sys.exit(2 if exc.exit_code in (None, 1) else exc.exit_code)
         except (click.exceptions.Abort, KeyboardInterrupt):
             click.echo("interrupted", err=True)
-            sys.exit(130)
+            interrupt.exit_interrupted()
+        except SystemExit as exc:  # a command's own exit after an interrupt (its message said what was kept)
+            if exc.code == 130:
+                interrupt.exit_interrupted()
+            raise
         sys.exit(rv if isinstance(rv, int) else 0)
 
 

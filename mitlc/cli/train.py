@@ -26,6 +26,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from mitlc.cli import interrupt
 from mitlc.cli.common import atomic_write, compile_options, handle_errors, plant_file_option
 from mitlc.cli.outputs import OutputSet
 from mitlc.errors import InputError, TrainingError
@@ -380,6 +381,7 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     saved = [start]
 
     def progress(trial: int, returns: np.ndarray) -> None:
+        interrupt.check()
         recent = _mean(agent.returns[:, -10:])
         bar.set_postfix_str(f"mean return {recent:8.1f}", refresh=False)
         bar.update(1)
@@ -398,6 +400,7 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     interrupted = False
     failed: TrainingError | None = None
     try:
+        interrupt.check()  # a Ctrl-C during start-up that Python dropped
         agent.train(todo, progress, total=trials)
     except KeyboardInterrupt:
         interrupted = True
