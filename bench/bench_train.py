@@ -16,7 +16,10 @@ permanent|counted`` it measures instead what the violation-aware reward costs
 the trainer (its penalty ramp, known penalty value and violation sub-nets):
 R = 30 with the option against R = 30 without it, in the same process.
 
-    python bench/bench_train.py [--problem p1] [--trials 40] [--violations permanent]
+With ``--kernel`` it compares the numpy trial and the fused kernel (kernel = numba) in
+the same process on P1 and P4 at R = 1 and 30, and prints the kernel's scaling in R.
+
+    python bench/bench_train.py [--problem p1] [--trials 40] [--violations permanent] [--kernel]
 """
 
 from __future__ import annotations
@@ -51,9 +54,11 @@ SPECS = {
 }
 
 
-def batched(rs, runs: int, trials: int, seed: int = 0, repeats: int = 3) -> tuple[float, np.ndarray]:
+def batched(
+    rs, runs: int, trials: int, seed: int = 0, repeats: int = 3, kernel: str = "numpy"
+) -> tuple[float, np.ndarray]:
     """Best of ``repeats`` timings (the machine is shared: the best is the least disturbed)."""
-    agent = Sacpn(rs, SacpnSettings(), runs=runs, seed=seed)
+    agent = Sacpn(rs, SacpnSettings(kernel=kernel), runs=runs, seed=seed)
     agent.train(2)  # warm up buffers and caches
     best = math.inf
     for _ in range(repeats):
@@ -126,6 +131,7 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=40, help="trials timed for the batched trainer")
     ap.add_argument("--naive-trials", type=int, default=4, help="trials timed for the naive loop (3 runs)")
     ap.add_argument("--violations", default="off", choices=("off", "permanent", "counted"))
+    ap.add_argument("--kernel", action="store_true", help="numpy trial vs the fused numba kernel, P1 and P4")
     args = ap.parse_args()
     spec = load_spec(ROOT / "specs" / "pendulum" / SPECS[args.problem])
     rs = compile_spec(spec)
@@ -141,11 +147,14 @@ def main() -> None:
         print(f"R=30 {args.violations:<11}: {rate_v:12,.0f} run-steps/s")
         print(f"ratio {args.violations} / off: {rate_v / rate_off:5.2f}x")
         return
+    if args.kernel:
+        kernels(args.trials)
+        return
     print(
         f"problem {args.problem}: {len(rs.net.places)} places, {len(rs.net.subnets)} sub-nets, "
         f"numpy {np.__version__}, BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}"
     )
-    rate1, _ = batched(rs, 1, args.trials)
+    rate1, _ = batched(rs, 1, args.trials)  # the numpy trial (kernel = numpy)
     rate30, _ = batched(rs, 30, args.trials)
     rate_naive, naive_returns = naive(rs, 3, args.naive_trials)
     # same seed, same random numbers: the fast path must give the naive loop's returns
@@ -161,6 +170,33 @@ def main() -> None:
     )
     print(f"max |return difference| fast vs naive over {args.naive_trials} trials x 3 runs: {agree:.3g}")
     checkpoint_cost(rs, rate30)
+
+
+def kernels(trials: int) -> None:
+    """The numpy trial against the fused kernel (kernel = numba) in this process, P1 and P4 at
+    R = 1 and 30, best of 3 each, and the kernel's scaling in R on P1 (printed, never asserted)."""
+    from mitlc.learn.kernel import numba_available
+
+    if not numba_available():
+        print("numba is not installed (pip install 'mitlc[fast]'): nothing to compare")
+        return
+    for problem in ("p1", "p4"):
+        rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / SPECS[problem]))
+        for runs in (1, 30):
+            t0 = time.perf_counter()
+            Sacpn(rs, SacpnSettings(kernel="numba"), runs=runs).train(1)  # compiles (once per process)
+            first = time.perf_counter() - t0
+            slow, ret_n = batched(rs, runs, max(2, trials // 10 if runs == 1 else trials // 4))
+            fast, _ = batched(rs, runs, trials * 5, kernel="numba")
+            print(
+                f"{problem} R={runs:<3}: numpy {slow:12,.0f}  kernel {fast:12,.0f} run-steps/s  "
+                f"kernel / numpy {fast / slow:6.1f}x  (first trial with compile {first:.1f} s)"
+            )
+    rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / SPECS["p1"]))
+    print("kernel scaling, p1:")
+    for runs in (1, 10, 30, 100, 1000):
+        rate, _ = batched(rs, runs, max(2, 3000 // runs), kernel="numba")
+        print(f"  R={runs:<5}: {rate:12,.0f} run-steps/s")
 
 
 def checkpoint_cost(rs, rate30: float) -> None:

@@ -77,6 +77,10 @@ from mitlc.petri.compile import RewardSystem
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
 
+_KERNELS: dict[tuple, Callable] = {}
+"""Fused trial kernels compiled in this process, per (jit, plant step, predicates): a
+learner built again on the same problem does not compile again."""
+
 
 @dataclass(frozen=True)
 class SacpnSettings(Settings):
@@ -143,11 +147,21 @@ class SacpnSettings(Settings):
     bootstrap_timeout: bool = True
     """Treat the end of a trial as a time-out (bootstrap ``gamma V(x_N)``), not as a terminal state."""
 
+    kernel: str = "auto"
+    """How a trial is computed: ``numpy`` (the reference: vectorised over the runs),
+    ``numba`` (the fused trial kernel of :mod:`mitlc.learn.kernel`, compiled; needs
+    ``mitlc[fast]``), ``auto`` (numba when installed, else numpy). Both give the same
+    returns and parameters to the bit (tested); problems outside the kernel's scope
+    (environments, user plants without ``kernel_step``, timed obligations, untabulated
+    rewards) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
+
     def check(self) -> None:
         if self.mask not in ("current", "next"):
             raise TrainingError(f"unknown mask '{self.mask}' (current or next)")
         if self.saturation not in ("applied", "none"):
             raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
+        if self.kernel not in ("auto", "numpy", "numba"):
+            raise TrainingError(f"unknown kernel '{self.kernel}' (auto, numpy or numba)")
         if self.violation_value not in ("known", "learned"):
             raise TrainingError(f"unknown violation_value '{self.violation_value}' (known or learned)")
         check_fraction(self, ("gamma", "lam", "penalty_ramp"))
@@ -325,6 +339,98 @@ class Sacpn:
         self.rngs = [np.random.Generator(np.random.PCG64(p[0])) for p in pairs]
         self.eval_rngs = [np.random.Generator(np.random.PCG64(p[1])) for p in pairs]
         self._snapshot: _Snapshot | None = None
+        self._choose_kernel()
+
+    def _choose_kernel(self) -> None:
+        """Pick the trial's path (``settings.kernel``): :attr:`kernel` is ``numpy`` or
+        ``numba``, :attr:`kernel_reason` why numpy where the fused kernel was not taken."""
+        from mitlc.learn import kernel as fk
+
+        want = self.settings.kernel
+        self.kernel, self.kernel_reason = "numpy", "kernel = numpy" if want == "numpy" else None
+        self._fused: Callable | None = None
+        if want == "numpy":
+            return
+        if not fk.numba_available():
+            if want == "numba":
+                raise TrainingError("kernel = numba needs numba", hint="pip install 'mitlc[fast]', or kernel = auto")
+            self.kernel_reason = "numba is not installed"
+            return
+        why = fk.unsupported(self)
+        if why is not None:
+            self.kernel_reason = why
+            return
+        self._fused = self.fused_trial(fk.jit)
+        self.kernel = "numba"
+
+    def fused_trial(self, jit: Callable) -> Callable[[], np.ndarray]:
+        """One trial by the fused kernel (:mod:`mitlc.learn.kernel`) compiled by ``jit`` (the
+        identity runs it as plain Python: the test that it is :meth:`_trial_numpy`, bit for bit).
+        Compiled kernels are kept per plant step and predicates for the process."""
+        from mitlc.learn import kernel as fk
+
+        plant, rt = self.plant, self.runtime
+        assert plant.kernel_step is not None and rt.tables is not None and rt.tables.reward is not None
+        step, pc, nwork = plant.kernel_step(plant, self.params, jit)
+        key = (jit, plant.name, plant.kernel_step, len(plant.state), fk.atom_source(rt._preds, rt._columns))
+        trial = _KERNELS.get(key)
+        if trial is None:
+            atoms = fk.compile_atoms(rt._preds, rt._columns, jit)
+            trial = _KERNELS[key] = fk.trial_kernel(step, atoms, jit)
+        feats = self.features
+        A = len(feats.centres)
+        width = max(len(c) for c in feats.centres)
+        centres = np.zeros((A, width))
+        for i, c in enumerate(feats.centres):
+            centres[i, : len(c)] = c
+        fc = (
+            np.array(feats.counts, dtype=np.int64),
+            np.array(feats.periodic, dtype=np.bool_),
+            np.array([b[0] for b in feats.bounds]),
+            np.array([b[1] for b in feats.bounds]),
+            np.array(feats.inv_w2),
+            centres,
+        )
+        tables = rt.tables
+        clock = np.array(self._clock, dtype=np.int64)
+        st = self.settings
+        marked = np.ascontiguousarray(self._marked, dtype=np.int64)
+        marked_c = np.ascontiguousarray(self._marked_c, dtype=np.int64)
+        reward_full = np.ascontiguousarray(tables.reward, dtype=float)
+        pen_left = self._pen_left if self._known else np.zeros(self.n_steps + 1)
+
+        def run() -> np.ndarray:
+            s_pen = self.penalty_scale(self.trial)
+            reward_tab = reward_full
+            if s_pen < 1.0:
+                assert tables.charge is not None
+                reward_tab = reward_full + ((1.0 - s_pen) * self.rs.penalty) * tables.charge
+            pen = self._pen * s_pen if self._known else np.zeros(reward_full.shape[0])
+            x, noise = self._trial_start()
+            code0 = np.asarray(rt.reset_code(x), dtype=np.int64)
+            ret = np.zeros(self.runs)
+            trial(
+                x, noise, code0, self.xi, self.theta, ret, tables.next_code, clock, reward_tab, reward_full,
+                marked, marked_c, pen, pen_left, pc, nwork, *fc,
+                st.gamma, st.gamma * st.lam, st.alpha_c, st.alpha_a, self.u_max,
+                1.0 / self.n_tokens, 1.0 / self.n_tokens_c,
+                st.mask == "current", st.saturation == "applied", bool(st.bootstrap_timeout), bool(self._known),
+                s_pen >= 1.0,
+            )  # fmt: skip
+            return ret
+
+        return run
+
+    def _trial_start(self) -> tuple[np.ndarray, np.ndarray]:
+        """A trial's initial states ``(R, n)`` and exploration ``(N, R)``, drawn from the runs'
+        generators in the one order both paths use."""
+        N, R = self.n_steps, self.runs
+        x = np.ascontiguousarray(self.sample_init(self.rngs), dtype=float)
+        noise = np.empty((N, R))
+        for i, g in enumerate(self.rngs):
+            noise[:, i] = g.standard_normal(N)
+        noise *= self.sigma
+        return x, noise
 
     # ------------------------------------------------------------ helpers
     def sample_init(self, rngs: list[np.random.Generator]) -> np.ndarray:
@@ -428,7 +534,14 @@ class Sacpn:
         return bad
 
     def _trial(self) -> np.ndarray:
-        """One trial of Algorithm 1 on all runs at once; returns the undiscounted returns.
+        """One trial of Algorithm 1 on all runs at once; returns the undiscounted returns
+        (the fused kernel's when :attr:`kernel` is ``numba``, else :meth:`_trial_numpy`'s)."""
+        if self._fused is not None:
+            return self._fused()
+        return self._trial_numpy()
+
+    def _trial_numpy(self) -> np.ndarray:
+        """One trial of Algorithm 1 on all runs at once, vectorised; the reference.
 
         The hot loop: every array is preallocated, the net is two table
         look-ups, and each update touches only the rows of the marked places
@@ -471,11 +584,7 @@ class Sacpn:
 
         xt = np.empty((len(self.plant.state), R))  # rows are contiguous: cheap column access
         x = xt.T
-        x[...] = self.sample_init(self.rngs)
-        noise = np.empty((N, R))
-        for i, g in enumerate(self.rngs):
-            noise[:, i] = g.standard_normal(N)
-        noise *= self.sigma
+        x[...], noise = self._trial_start()
 
         theta = self.theta
         xi_f = self.xi.reshape(R * P, F)
@@ -507,15 +616,23 @@ class Sacpn:
         known = self._known
         if known:
             pen, pen_left = self._pen * s_pen, self._pen_left
-        vecdot = np.vecdot
+        reduce = np.add.reduce
+        prods: dict[tuple[int, ...], np.ndarray] = {}
         sv_b = sv[:, None] if (one_c or not current) else sv[:, None, None]
         coef_b = coef[:, None] if one else coef[:, None, None]
 
         def dot(rows: np.ndarray, ph: np.ndarray, out: np.ndarray, single: bool) -> None:
+            # products, then numpy's pairwise sums (not BLAS, whose order depends on the CPU):
+            # the order the fused kernel repeats, so both give the same bits
+            prod = prods.get(rows.shape)
+            if prod is None:
+                prod = prods[rows.shape] = np.empty(rows.shape)
             if single:
-                vecdot(rows, ph, out=out)
+                multiply(rows, ph, out=prod)
+                reduce(prod, axis=1, out=out)
             else:
-                np.add.reduce(vecdot(rows, ph[:, None, :]), axis=1, out=out)
+                multiply(rows, ph[:, None, :], out=prod)
+                reduce(reduce(prod, axis=2), axis=1, out=out)
 
         def rows_of(ph: np.ndarray, single: bool) -> np.ndarray:  # phi shaped like the gathered rows
             return ph if single else ph[:, None, :]

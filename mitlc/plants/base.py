@@ -19,13 +19,27 @@ True
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
-__all__ = ["StateVar", "Plant", "PLANTS", "register", "wrap_angle", "make_integrator", "Simulator", "OdeSimulator"]
+__all__ = [
+    "StateVar",
+    "Plant",
+    "PLANTS",
+    "register",
+    "wrap_angle",
+    "make_integrator",
+    "Simulator",
+    "OdeSimulator",
+    "ode_dynamics",
+    "rk4_kernel_step",
+    "pairwise_sum",
+    "pairwise_sum_for",
+]
 
 
 def wrap_angle(q: np.ndarray) -> np.ndarray:
@@ -71,6 +85,15 @@ class Plant:
     """Optional: builds the :class:`Simulator` trainers reset and step, for a plant that
     is stepped rather than integrated (a Gymnasium environment,
     :mod:`mitlc.plants.gym_env`); None: an :class:`OdeSimulator` of :meth:`step`."""
+
+    kernel_step: Callable[[Plant, Mapping[str, float], Callable], tuple[Callable, np.ndarray, int]] | None = None
+    """Optional: ``kernel_step(plant, params, jit) -> (step, consts, work)``, the one-step map
+    of :func:`make_integrator` for *one* copy, as plain Python over scalars that numba can
+    compile: ``step(x, u, consts, scratch)`` moves ``x (n,)`` in place, bit for bit as the
+    batched step does (``scratch``: ``work`` floats). ``jit`` compiles the functions
+    ``step`` calls (the identity when the fused SACPN kernel, :mod:`mitlc.learn.kernel`,
+    runs uncompiled). A plant without one trains on the numpy path.
+    :func:`rk4_kernel_step` builds it from an ``ode``."""
 
     observation: tuple = ()
     """An environment plant's state lines (:class:`mitlc.plants.gym_env.ObsVar`: each state
@@ -123,6 +146,97 @@ class Plant:
         return x
 
 
+def _pairwise_block(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise sum of at most 128 entries: sequential below 8, else 8 accumulators."""
+    if n < 8:
+        s = a[lo]
+        for i in range(1, n):
+            s += a[lo + i]
+        return s
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    end = n - n % 8
+    while i < end:
+        j = lo + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
+        i += 8
+    s = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        s += a[lo + i]
+        i += 1
+    return s
+
+
+@functools.cache
+def pairwise_sum_for(jit: Callable[[Callable], Callable]) -> Callable[[np.ndarray, int, int], float]:
+    """:func:`pairwise_sum` with it and its helper compiled by ``jit`` (numba's, in
+    :mod:`mitlc.learn.kernel`; the identity gives the plain-Python one). Kept per ``jit``."""
+    block = jit(_pairwise_block)
+
+    def pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:
+        """``a[lo : lo + n].sum()`` in the order numpy's ``add.reduce`` sums a contiguous run
+        (pairwise: blocks of eight accumulators, halves above 128 summed left then right), as
+        plain Python that numba compiles, so that compiled scalar code gives numpy's sums to
+        the bit (tested). The halving is an explicit stack (numba compiles no recursion here)."""
+        if n <= 128:
+            return block(a, lo, n)
+        tasks = np.empty((128, 3), dtype=np.int64)  # (lo, n, combine?)
+        vals = np.empty(128)
+        nt, nv = 1, 0
+        tasks[0, 0], tasks[0, 1], tasks[0, 2] = lo, n, 0
+        while nt > 0:
+            nt -= 1
+            t_lo, t_n, combine = tasks[nt, 0], tasks[nt, 1], tasks[nt, 2]
+            if combine:
+                nv -= 1
+                vals[nv - 1] = vals[nv - 1] + vals[nv]
+            elif t_n <= 128:
+                vals[nv] = block(a, t_lo, t_n)
+                nv += 1
+            else:
+                h = t_n // 2
+                h -= h % 8
+                tasks[nt, 0], tasks[nt, 1], tasks[nt, 2] = 0, 0, 1
+                tasks[nt + 1, 0], tasks[nt + 1, 1], tasks[nt + 1, 2] = t_lo + h, t_n - h, 0
+                tasks[nt + 2, 0], tasks[nt + 2, 1], tasks[nt + 2, 2] = t_lo, h, 0
+                nt += 3
+        return vals[0]
+
+    return jit(pairwise_sum)
+
+
+pairwise_sum = pairwise_sum_for(lambda f: f)
+
+
+def ode_dynamics(
+    ode: Callable, names: Sequence[str]
+) -> Callable[[np.ndarray, np.ndarray, Mapping[str, float]], np.ndarray]:
+    """The batched :attr:`Plant.dynamics` of a plain-Python ``ode(x, u, p, out)``.
+
+    ``ode`` is the physics written once, over the state's *first* axis: ``x[i]`` is
+    variable ``i`` (a scalar for one copy, a row of ``R`` values for a batch), ``p``
+    the parameters in ``names`` order, and it writes ``xdot[i]`` into ``out[i]``. The
+    batched dynamics calls it on rows; :func:`rk4_kernel_step` compiles it for one copy.
+    """
+    names = tuple(names)
+
+    def dynamics(x: np.ndarray, u: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
+        p = np.array([float(params[n]) for n in names])
+        out = np.empty((x.shape[1], x.shape[0]))
+        ode(x.T, u, p, out)
+        return out.T
+
+    return dynamics
+
+
 PLANTS: dict[str, Plant] = {}
 
 
@@ -148,6 +262,55 @@ def make_integrator(plant: Plant, params: Mapping[str, float]) -> Callable[[np.n
         x[...] = plant.step(x.copy(), u, p)
 
     return generic
+
+
+def rk4_kernel_step(
+    ode: Callable, names: Sequence[str]
+) -> Callable[[Plant, Mapping[str, float], Callable], tuple[Callable, np.ndarray, int]]:
+    """A :attr:`Plant.kernel_step` from the plant's ``ode`` (see :func:`ode_dynamics`): the
+    RK4 of :meth:`Plant.step` for one copy, with its operations in the same order (so the
+    same numbers to the bit, tested), then the same wraps and clips."""
+    names = tuple(names)
+
+    def build(plant: Plant, params: Mapping[str, float], jit: Callable) -> tuple[Callable, np.ndarray, int]:
+        n = len(plant.state)
+        f = jit(ode)
+        # consts: dt, u_max, then per variable (kind, lo, hi) with kind 1 = angle, 2 = clipped, then p
+        kinds = [1.0 if v.periodic else 2.0 if v.name in plant.clip else 0.0 for v in plant.state]
+        rows = [[k, v.lo, v.hi] for k, v in zip(kinds, plant.state, strict=True)]
+        consts = np.array(
+            [float(params["dt"]), float(params["u_max"])]
+            + [c for row in rows for c in row]
+            + [float(params[m]) for m in names]
+        )
+
+        def step(x: np.ndarray, u: float, c: np.ndarray, w: np.ndarray) -> None:
+            dt, u_max = c[0], c[1]
+            p = c[2 + 3 * n :]
+            u = np.minimum(np.maximum(u, -u_max), u_max)  # np.clip's order
+            k1, k2, k3, k4, y = w[0:n], w[n : 2 * n], w[2 * n : 3 * n], w[3 * n : 4 * n], w[4 * n : 5 * n]
+            f(x, u, p, k1)
+            for i in range(n):
+                y[i] = x[i] + 0.5 * dt * k1[i]
+            f(y, u, p, k2)
+            for i in range(n):
+                y[i] = x[i] + 0.5 * dt * k2[i]
+            f(y, u, p, k3)
+            for i in range(n):
+                y[i] = x[i] + dt * k3[i]
+            f(y, u, p, k4)
+            for i in range(n):
+                x[i] = x[i] + dt / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
+            for i in range(n):
+                kind = c[2 + 3 * i]
+                if kind == 1.0:
+                    x[i] = (x[i] + np.pi) % (2 * np.pi) - np.pi
+                elif kind == 2.0:
+                    x[i] = np.minimum(np.maximum(x[i], c[3 + 3 * i]), c[4 + 3 * i])
+
+        return jit(step), consts, 5 * n
+
+    return build
 
 
 class Simulator(Protocol):

@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import numpy as np
 
-from mitlc.plants.base import Plant, StateVar, register
+from mitlc.plants.base import Plant, StateVar, ode_dynamics, register, rk4_kernel_step
 
 __all__ = ["MASS_DAMPER"]
 
 
-def _mass_damper(x: np.ndarray, u: np.ndarray, p: Mapping[str, float]) -> np.ndarray:
-    # (A-1): M qdd = -B qd + u
-    qd = x[:, 1]
-    return np.stack([qd, (-p["B"] * qd + u) / p["M"]], axis=1)
+PARAMS = ("M", "B")
+
+
+def _mass_damper_ode(x: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """(A-1): M qdd = -B qd + u, over the state's first axis (p: M, B); the physics, once."""
+    out[0] = x[1]
+    out[1] = (-p[1] * x[1] + u) / p[0]
+
+
+_mass_damper = ode_dynamics(_mass_damper_ode, PARAMS)
 
 
 MASS_DAMPER = register(
@@ -30,5 +34,6 @@ MASS_DAMPER = register(
         dynamics=_mass_damper,
         description="mass-damper of appendix A-1 (M = 0.5 kg, B = 0.05 N s/m); q in m, qdot in m/s",
         default_spec="mass_damper/overshoot.mitl",
+        kernel_step=rk4_kernel_step(_mass_damper_ode, PARAMS),
     )
 )

@@ -1,0 +1,181 @@
+"""SACPN's fused trial kernel (mitlc.learn.kernel) against the numpy trial, the reference.
+
+Exactness: to the bit (returns, actor and critic parameters), no tolerance. Both paths
+sum in numpy's pairwise order and numpy's float64 sin/cos/exp are the C library's on
+x86-64 (as numba's are); should a platform's numpy round those differently, these tests
+say so rather than hide it.
+
+The uncompiled kernel (plain Python, ``jit`` the identity) runs without numba: that test
+is what keeps the two copies of Algorithm 1 from drifting apart.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mitlc.errors import TrainingError
+from mitlc.learn import kernel as fk
+from mitlc.learn.sacpn import Sacpn, SacpnSettings
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.plants import PLANTS, make_integrator
+from mitlc.plants.base import pairwise_sum
+from mitlc.spec.parse import load_spec, parse_spec
+
+ROOT = Path(__file__).resolve().parent.parent
+SPECS = [
+    "pendulum/p1_swing_up",
+    "pendulum/p2_avoid",
+    "pendulum/p3_avoid_speed_limit",
+    "pendulum/p4_alternate",
+    "pendulum/p5_timed_visit",
+    "mass-damper: F G near",
+    "mass-damper: F G near & 5 * G !fast",
+]
+MASS_DAMPER = """plant mass-damper
+init q in [-1, 1], qdot in [-0.5, 0.5]
+horizon 2
+prop near = abs(q) < 0.1
+prop fast = abs(qdot) > 1.5 and q * qdot > 0
+formula {}
+"""
+
+
+def rs_of(name: str, violations: str = "off"):
+    if name.startswith("mass-damper: "):  # the shipped mass-damper specs are HyRL requirements
+        spec = parse_spec(MASS_DAMPER.format(name.removeprefix("mass-damper: ")))
+    else:
+        spec = load_spec(ROOT / "specs" / f"{name}.mitl")
+    return compile_spec(spec, CompileOptions.from_spec(spec, violations=violations))
+
+
+def same_trials(rs, settings: SacpnSettings, jit, trials: int, runs: int = 3, ramp: int = 0) -> None:
+    """``trials`` trials of the numpy trial and of the kernel from the same seed: equal bits."""
+    a = Sacpn(rs, settings, runs=runs, seed=3)
+    b = Sacpn(rs, settings, runs=runs, seed=3)
+    a.ramp_trials = b.ramp_trials = ramp
+    fused = b.fused_trial(jit)
+    for _ in range(trials):
+        ra, rb = a._trial_numpy(), fused()
+        a.trial += 1
+        b.trial += 1
+        assert np.array_equal(ra, rb)
+        assert np.array_equal(a.xi, b.xi) and np.array_equal(a.theta, b.theta)
+    assert np.abs(a.theta).max() > 0  # it learned something
+
+
+SMALL = {"rbf": (4, 3), "trial_s": 0.9}
+VARIANTS = [
+    {},
+    {"mask": "next"},
+    {"saturation": "none", "bootstrap_timeout": False},
+]
+
+
+@pytest.mark.parametrize("name", SPECS)
+@pytest.mark.parametrize("variant", range(len(VARIANTS)))
+def test_uncompiled_kernel_is_the_numpy_trial(name: str, variant: int) -> None:
+    same_trials(rs_of(name), SacpnSettings(kernel="numpy", **SMALL, **VARIANTS[variant]), fk.identity, trials=2)
+
+
+@pytest.mark.parametrize("violations", ["permanent", "counted"])
+def test_uncompiled_kernel_with_violations_and_the_penalty_ramp(violations: str) -> None:
+    rs = rs_of("pendulum/p2_avoid", violations)
+    for value in ("known", "learned"):
+        st = SacpnSettings(kernel="numpy", violation_value=value, **SMALL)
+        same_trials(rs, st, fk.identity, trials=3, ramp=2)  # s_pen 0, 0.5, then 1
+
+
+@pytest.mark.parametrize("name", SPECS)
+def test_compiled_kernel_is_the_numpy_trial(name: str) -> None:
+    pytest.importorskip("numba")
+    same_trials(rs_of(name), SacpnSettings(kernel="numpy"), fk.jit, trials=3)
+
+
+def test_compiled_kernel_variants_and_violations() -> None:
+    pytest.importorskip("numba")
+    same_trials(rs_of("pendulum/p4_alternate"), SacpnSettings(kernel="numpy", mask="next"), fk.jit, trials=2)
+    st = SacpnSettings(kernel="numpy", saturation="none", bootstrap_timeout=False)
+    same_trials(rs_of("pendulum/p1_swing_up"), st, fk.jit, trials=2)
+    same_trials(rs_of("pendulum/p3_avoid_speed_limit", "permanent"), SacpnSettings(), fk.jit, trials=3, ramp=2)
+
+
+def test_train_with_auto_equals_numpy() -> None:
+    pytest.importorskip("numba")
+    rs = rs_of("pendulum/p2_avoid", "permanent")
+    a = Sacpn(rs, SacpnSettings(kernel="numpy"), runs=2, seed=5)
+    b = Sacpn(rs, SacpnSettings(kernel="auto"), runs=2, seed=5)
+    assert (a.kernel, b.kernel, b.kernel_reason) == ("numpy", "numba", None)
+    assert np.array_equal(a.train(4), b.train(4))
+    assert np.array_equal(a.xi, b.xi) and np.array_equal(a.theta, b.theta)
+
+
+def test_fallback_for_timed_obligations() -> None:
+    rs = rs_of("pendulum/n1_reach_in_time")
+    agent = Sacpn(rs, SacpnSettings(kernel="auto"), runs=1, seed=0)
+    assert agent.kernel == "numpy" and agent.kernel_reason is not None
+    if fk.numba_available():
+        assert "timed" in agent.kernel_reason
+        forced = Sacpn(rs, SacpnSettings(kernel="numba"), runs=1, seed=0)
+        assert forced.kernel == "numpy" and "timed" in (forced.kernel_reason or "")
+    agent.train(1)
+
+
+def test_fallback_for_an_environment() -> None:
+    pytest.importorskip("gymnasium")
+    spec = parse_spec(
+        "plant gym:Pendulum-v1\nstate q = atan2(obs[1], obs[0]), w = obs[2]\nhorizon 1\n"
+        "prop up = abs(q) < 0.5\nformula F G up\n"
+    )
+    agent = Sacpn(compile_spec(spec), SacpnSettings(kernel="auto", rbf=(4, 4)), runs=1, seed=0)
+    assert agent.kernel == "numpy"
+    if fk.numba_available():
+        assert "environment" in (agent.kernel_reason or "")
+
+
+def test_kernel_setting_is_checked(monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(TrainingError, match="unknown kernel"):
+        SacpnSettings(kernel="fast").check()
+    rs = rs_of("pendulum/p1_swing_up")
+    assert Sacpn(rs, SacpnSettings(kernel="numpy")).kernel_reason == "kernel = numpy"
+    monkeypatch.setattr(fk, "numba_available", lambda: False)
+    with pytest.raises(TrainingError, match="needs numba"):
+        Sacpn(rs, SacpnSettings(kernel="numba"))
+    agent = Sacpn(rs, SacpnSettings(kernel="auto"))
+    assert (agent.kernel, agent.kernel_reason) == ("numpy", "numba is not installed")
+
+
+@pytest.mark.parametrize("plant", ["pendulum", "mass-damper"])
+def test_plant_kernel_step_is_the_batched_step(plant: str) -> None:
+    pl = PLANTS[plant]
+    p = pl.params()
+    rng = np.random.default_rng(0)
+    x = rng.uniform([v.lo for v in pl.state], [v.hi for v in pl.state], (200, len(pl.state)))
+    u = rng.uniform(-2 * p["u_max"], 2 * p["u_max"], 200)
+    batched = x.copy()
+    make_integrator(pl, p)(batched, u)
+    step, consts, work = pl.kernel_step(pl, p, fk.identity)
+    one = x.copy()
+    scratch = np.empty(work)
+    for r in range(len(u)):
+        step(one[r], u[r], consts, scratch)
+    assert np.array_equal(one, batched)
+    assert np.allclose(batched, pl.step(x.copy(), u, p), rtol=1e-12, atol=1e-12)
+
+
+def test_pairwise_sum_is_numpys_reduce() -> None:
+    rng = np.random.default_rng(1)
+    for n in (1, 5, 7, 8, 9, 100, 128, 129, 300, 1600):
+        a = rng.standard_normal((3, n))
+        assert [pairwise_sum(row, 0, n) for row in a] == list(np.add.reduce(a, axis=1))
+
+
+def test_atom_code_of_the_generated_predicates() -> None:
+    rs = rs_of("pendulum/p4_alternate")
+    agent = Sacpn(rs, SacpnSettings(kernel="numpy"))
+    rt = agent.runtime
+    atoms = fk.compile_atoms(rt._preds, rt._columns, fk.identity)
+    x = np.random.default_rng(2).uniform([-np.pi, -20], [np.pi, 20], (500, 2))
+    assert [atoms(row) for row in x] == list(rt.atom_code(x))
