@@ -218,3 +218,18 @@ def test_region_stepping_gives_the_markings_of_the_scanning_rule(spec_opts, stat
         if rt.tables is not None and not rt.timed:
             np.testing.assert_array_equal(rt.step(M, x[:, k + 1], tau), want)
         M = want
+
+
+def test_nets_copy_and_pickle() -> None:
+    """Gymnasium deep-copies an environment's arguments and sweep workers pickle: an
+    Incidence survives both, equal to itself."""
+    import copy
+    import pickle
+
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import load_spec
+
+    rs = compile_spec(load_spec("pendulum/p2_avoid"))
+    for other in (copy.deepcopy(rs), pickle.loads(pickle.dumps(rs)), copy.copy(rs)):
+        assert other.net.pre == rs.net.pre and other.net.post == rs.net.post
+        np.testing.assert_array_equal(other.net.D, rs.net.D)

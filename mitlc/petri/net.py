@@ -240,6 +240,17 @@ class Incidence:
     def __setattr__(self, name: str, value: object) -> None:
         raise AttributeError("an Incidence is read-only")
 
+    # read-only: a copy is the same matrix; pickling (sweep workers, copies of env specs)
+    # rebuilds it through __init__
+    def __copy__(self) -> Incidence:
+        return self
+
+    def __deepcopy__(self, memo: dict[int, object]) -> Incidence:
+        return self
+
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
+        return (Incidence, (self.shape, np.array(self.indptr), np.array(self.indices), np.array(self.data)))
+
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Incidence):
             return NotImplemented
