@@ -257,14 +257,17 @@ def _scratch() -> Path:
     return dest
 
 
-def run_tests(copy_root: Path, tests: list[str], timeout: float) -> str:
-    """``killed`` (a test failed), ``timeout`` (counted as killed) or ``survived``."""
+def run_tests(copy_root: Path, tests: list[str], timeout: float, log: list[str] | None = None) -> str:
+    """``killed`` (a test failed), ``timeout`` (counted as killed) or ``survived``; ``log``
+    gets the tests' output."""
     env = {**os.environ, "PYTHONPATH": str(copy_root), "OPENBLAS_NUM_THREADS": "1"}
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *[f"tests/{t}" for t in tests]]
     try:
         r = subprocess.run(cmd, cwd=copy_root, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return "timeout"
+    if log is not None:
+        log.append(r.stdout + r.stderr)
     return "survived" if r.returncode == 0 else "killed"
 
 
@@ -303,8 +306,10 @@ def main() -> None:
             path, _ = TARGETS[m]
             (s / path).write_text(ast.unparse(ast.parse((ROOT / path).read_text())), encoding="utf-8")
     for m in modules:
-        base = run_tests(scratches[0], TARGETS[m][1], args.timeout)
+        log: list[str] = []
+        base = run_tests(scratches[0], TARGETS[m][1], args.timeout, log)
         if base != "survived":
+            print("\n".join(log[-1].splitlines()[-40:]) if log else "", flush=True)
             raise SystemExit(f"the tests of {m} fail without any mutant ({base}): fix them first")
 
     def one(item: tuple[Mutant, str]) -> tuple[Mutant, str]:
