@@ -36,9 +36,19 @@ ROOT = Path(__file__).resolve().parent.parent
 TARGETS: dict[str, tuple[str, list[str]]] = {
     "compile": (
         "mitlc/petri/compile.py",
-        ["test_compile.py", "test_compile_props.py", "test_violations.py", "test_net_vs_monitor.py", "test_golden.py"],
+        [
+            "test_compile.py",
+            "test_compile_props.py",
+            "test_violations.py",
+            "test_net_vs_monitor.py",
+            "test_golden.py",
+            "test_sparse.py",
+        ],
     ),
-    "runtime": ("mitlc/learn/runtime.py", ["test_runtime.py", "test_net_vs_monitor.py", "test_sacpn.py"]),
+    "runtime": (
+        "mitlc/learn/runtime.py",
+        ["test_runtime.py", "test_net_vs_monitor.py", "test_sacpn.py", "test_sparse.py"],
+    ),
     "reward": (
         "mitlc/petri/reward.py",
         ["test_reward.py", "test_compile.py", "test_compile_props.py", "test_runtime.py", "test_violations.py"],
@@ -60,6 +70,8 @@ EQUIVALENT: dict[str, str] = {
     "kernels:151:bool:Or->And": "an early return for an empty or out-of-trace window: the general path gives bottom",
     "kernels:87:bin:Sub->Add": "one more block of padding (filled with the identity) changes no window's value",
     "monitor:403:const:1->2": "_first reads one sample past b only where b is the trace's end or a hit lies in [a, b]",
+    "kernels:154:bin:Sub->Add": "L + 1 for L - 1: a window covering the trace meets a U b with F b, which it implies"
+    " (the line's other Sub, hi + lo, is killed by test_until_windows_and_empty_intervals_on_long_traces)",
     "kernels:157:cmp0:Gt->GtE": "with lo = 0 the left side's window [0, -1] is empty: meeting with top changes nothing",
     "parse:488:if:negated": "lark raises an inline transformer's errors unwrapped: its VisitError branch is never run",
     "parse:537:const:1->2": "the fallback position of a node built without one; the parser gives every node its own",
@@ -83,6 +95,7 @@ EQUIVALENT: dict[str, str] = {
     "runtime:537:const:1->2": "a second copy of the places' columns is never read: the expressions index the first",
     "runtime:247:const:0->1": "a 0-d array of the segment indexes the tables as its int does",
     "runtime:593:const:1->2": "numpy reads any negative size in reshape as the one to infer",
+    "runtime:654:cmp0:Gt->GtE": _FAST,
     "runtime:621:bin:Mult->Div": "an early exit of the reachability search; the final size check refuses the same nets",
 }
 """``module:line:operator`` of a mutant that cannot change any result -> why (from the

@@ -925,6 +925,8 @@ def test_violation_time_against_every_continuation(f: A.Formula) -> None:
         # a release broken on the trace's last sample, and on its window's last sample
         ("a R b", [-1] * 5, [1, 1, 1, 1, -1], 2.0, "b"),
         ("a R[0,1] b", [-1] * 5, [1, 1, -1, 1, 1], 1.0, "b"),
+        # an interval without a sample offset: the until fails at once, as itself
+        ("a U(1,1.4) b", [-1] * 5, [1] * 5, 0.0, "a U(1,1.4) b"),
     ],
 )
 def test_violation_time_and_blame_by_hand(text: str, x: list[float], y: list[float], when: float, blamed: str) -> None:

@@ -352,3 +352,13 @@ def test_gym_statements_are_checked():
     assert (spec.plant.var("x").lo, spec.plant.var("x").hi) == (0.0, 2.0)
     with pytest.raises(MitlError, match="'plant' given twice"):
         parse_spec("plant gym:Pendulum-v1\nplant gym:Pendulum-v1\nstate x = obs[0]\nprop b = x > 0\nformula F b\n")
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [("prop = x > 1", "expected a name"), ("formula F (a", "unexpected end of input, expected ')'")],
+)
+def test_expected_tokens_are_said_in_words(text: str, expected: str) -> None:
+    with pytest.raises(SpecSyntaxError) as info:
+        parse_spec(text)
+    assert expected in str(info.value)
