@@ -96,6 +96,10 @@ EQUIVALENT: dict[str, str] = {
     "runtime:247:const:0->1": "a 0-d array of the segment indexes the tables as its int does",
     "runtime:593:const:1->2": "numpy reads any negative size in reshape as the one to infer",
     "runtime:654:cmp0:Gt->GtE": _FAST,
+    "runtime:654:bin:Mult->Div": _FAST,
+    "runtime:774:bin:Mult->Div": "an early exit of the reachability search; the final size check refuses the same nets",
+    "runtime:161:cmp0:IsNot->Is": "a region sub-net taken for another is stepped by the scanning rule: same markings",
+    "runtime:265:bool:And->Or": "a transition into a region place has its region as guard: writing it twice is same",
     "runtime:621:bin:Mult->Div": "an early exit of the reachability search; the final size check refuses the same nets",
 }
 """``module:line:operator`` of a mutant that cannot change any result -> why (from the

@@ -408,6 +408,20 @@ def test_obligation_clocks_and_verdicts_by_hand():
         assert rt.verdicts().tolist() == [[timed.PENDING if k < 6 else timed.TRUE]]
 
 
+def test_obligation_clocks_of_a_window_within_a_second():
+    """F[0,1] G goal: the F obligation's age is over its own upper end, 1 s, not the trial."""
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import parse_spec
+
+    rs = compile_spec(
+        parse_spec("plant pendulum(dt = 0.5)\nhorizon 3\nprop goal = abs(q) < 0.3\nformula F[0,1] G goal\n")
+    )
+    rt = NetRuntime(rs, ("q", "qdot"), dt=0.5, steps=6)
+    M = rt.reset(np.array([[2.0, 0.0]]))
+    M = rt.step(M, np.array([[2.0, 0.0]]), 0.5)
+    np.testing.assert_allclose(rt.obligation_clocks(), [[0.0, 0.5]], atol=1e-12)
+
+
 def _table_mode(rt: NetRuntime) -> str:
     if rt.tables is None:
         return "none"
