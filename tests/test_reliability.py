@@ -204,12 +204,18 @@ def test_ctrl_c_at_start_up_is_exit_130(tmp_path, cli_import_s):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_default_sigint,
     )
     time.sleep(max(0.4, 1.2 * cli_import_s))  # loading the command line and compiling the spec
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "Aborted" not in err
+
+
+def _default_sigint() -> None:
+    """A child as a shell starts it: Ctrl-C not ignored, whatever this test process inherited or set."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @pytest.fixture(scope="module")
@@ -232,6 +238,7 @@ def test_ctrl_c_at_any_moment_of_start_up_is_exit_130(tmp_path, after, cli_impor
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_default_sigint,
     )
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
@@ -244,9 +251,11 @@ def test_a_swallowed_interrupt_is_raised_again() -> None:
     """The handler remembers the signal; the trainers' callbacks check it."""
     from mitlc.cli import interrupt
 
-    assert signal.getsignal(signal.SIGINT) is interrupt._handler  # installed with the command line
-    was = interrupt._seen
+    before, was = signal.getsignal(signal.SIGINT), interrupt._seen
     try:
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # as a program starts
+        interrupt.install()
+        assert signal.getsignal(signal.SIGINT) is interrupt._handler
         interrupt._seen = False
         interrupt.check()  # nothing pending: no raise
         with pytest.raises(KeyboardInterrupt):
@@ -256,6 +265,7 @@ def test_a_swallowed_interrupt_is_raised_again() -> None:
             interrupt.check()
     finally:
         interrupt._seen = was
+        signal.signal(signal.SIGINT, before)
 
 
 def test_ctrl_c_while_writing_keeps_a_checkpoint_to_resume(tmp_path, monkeypatch):

@@ -475,7 +475,19 @@ def _sweep_process(spec: Path, out: Path, *extra: str) -> subprocess.Popen:
         "--no-plot",
         *extra,
     ]
-    return subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        cmd,
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_sigint,
+    )
+
+
+def _default_sigint() -> None:
+    """A child as a shell starts it: Ctrl-C not ignored, whatever this test process inherited or set."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _n_results(out: Path) -> int:
