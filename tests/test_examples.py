@@ -210,27 +210,26 @@ def test_train_sb3(tmp_path: Path) -> None:
 # ------------------------------------------------------------------ the docs' examples
 
 
-@pytest.mark.skipif(not HAS_GYM, reason="docs/python.md shows the gym wrapper")
-def test_python_md_examples_run(monkeypatch) -> None:
-    monkeypatch.chdir(ROOT)
-    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    result = doctest.testfile(
-        str(ROOT / "docs" / "python.md"),
+def _doctest_page(name: str) -> doctest.TestResults:
+    return doctest.testfile(
+        str(ROOT / "docs" / name),
         module_relative=False,
         optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
         verbose=False,
     )
+
+
+@pytest.mark.skipif(not HAS_GYM, reason="docs/python.md shows the gym wrapper")
+def test_python_md_examples_run(monkeypatch) -> None:
+    monkeypatch.chdir(ROOT)
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    result = _doctest_page("python.md")
     assert result.failed == 0 and result.attempted >= 40
 
 
 def test_monitor_md_examples_run(monkeypatch) -> None:
     monkeypatch.chdir(ROOT)
-    result = doctest.testfile(
-        str(ROOT / "docs" / "monitor.md"),
-        module_relative=False,
-        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
-        verbose=False,
-    )
+    result = _doctest_page("monitor.md")
     assert result.failed == 0 and result.attempted >= 5
 
 

@@ -198,7 +198,13 @@ def test_bom_form_feed_and_flat_chains(tmp_path):
     assert "nesting too deep (more than 64 levels)" in one_line_error(run("compile", deep))
 
 
-def test_ctrl_c_at_start_up_is_exit_130(tmp_path, cli_import_s):
+def _default_sigint() -> None:
+    """A child as a shell starts it: Ctrl-C not ignored, whatever this test process inherited or set."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _interrupted_training(tmp_path, delay: float) -> tuple[int, str]:
+    """A long ``mitlc train`` sent SIGINT after ``delay`` seconds: its status and stderr."""
     proc = subprocess.Popen(
         [*MITLC, "train", "--spec", P2, "--runs", "2", "--trials", "100000", "-q", "--out", str(tmp_path / "o")],
         stdout=subprocess.PIPE,
@@ -206,16 +212,10 @@ def test_ctrl_c_at_start_up_is_exit_130(tmp_path, cli_import_s):
         text=True,
         preexec_fn=_default_sigint,
     )
-    time.sleep(max(0.4, 1.2 * cli_import_s))  # loading the command line and compiling the spec
+    time.sleep(delay)
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err
-    assert "Traceback" not in err and "Aborted" not in err
-
-
-def _default_sigint() -> None:
-    """A child as a shell starts it: Ctrl-C not ignored, whatever this test process inherited or set."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    _, err = proc.communicate(timeout=60)
+    return proc.returncode, err
 
 
 @pytest.fixture(scope="module")
@@ -227,23 +227,20 @@ def cli_import_s() -> float:
     return time.perf_counter() - t0
 
 
+def test_ctrl_c_at_start_up_is_exit_130(tmp_path, cli_import_s):
+    # after loading the command line and compiling the spec
+    status, err = _interrupted_training(tmp_path, max(0.4, 1.2 * cli_import_s))
+    assert status == 130, err
+    assert "Traceback" not in err and "Aborted" not in err
+
+
 @pytest.mark.parametrize("after", [0.0, 0.15, 0.35, 0.6, 1.0])
 def test_ctrl_c_at_any_moment_of_start_up_is_exit_130(tmp_path, after, cli_import_s):
     """While modules load, a SIGINT may land in a weakref callback (Python drops it) or in a
     dataclass's exec() (CPython then exits by SIGINT, status -2, though mitlc handled it):
     either way the status is 130 and the training does not run on."""
-    delay = 1.2 * cli_import_s + after
-    proc = subprocess.Popen(
-        [*MITLC, "train", "--spec", P2, "--runs", "2", "--trials", "100000", "-q", "--out", str(tmp_path / "o")],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=_default_sigint,
-    )
-    time.sleep(delay)
-    proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err
+    status, err = _interrupted_training(tmp_path, 1.2 * cli_import_s + after)
+    assert status == 130, err
     assert "Traceback" not in err and "interrupted" in err
 
 

@@ -619,13 +619,19 @@ def judged_formula(spec: Spec, formula: A.Formula | None = None) -> A.Formula:
     return f
 
 
-def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> tuple[_Eval, A.Formula]:
+def sample_time(dt: Any) -> float:
+    """``dt`` as a positive finite float, else an :class:`InputError` (both monitors check it so)."""
     try:
         dt = float(dt)
     except (TypeError, ValueError):
         raise InputError(f"sample time must be a number, got {dt!r}") from None
     if not (math.isfinite(dt) and dt > 0):
         raise InputError(f"sample time must be positive and finite, got {dt}")
+    return dt
+
+
+def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> tuple[_Eval, A.Formula]:
+    dt = sample_time(dt)
     f = judged_formula(spec, formula)
     needed = needed_variables(spec, f)
     env, R, L = _environment(spec, states, needed)

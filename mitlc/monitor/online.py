@@ -43,7 +43,7 @@ import numpy as np
 
 from mitlc.errors import InputError
 from mitlc.monitor.kernels import BOOL, REAL, Lattice, until, window
-from mitlc.monitor.offline import compile_pred, judged_formula, needed_variables, state_columns
+from mitlc.monitor.offline import compile_pred, judged_formula, needed_variables, sample_time, state_columns
 from mitlc.plants.base import wrap_angle
 from mitlc.spec import ast as A
 from mitlc.spec.model import Spec
@@ -435,12 +435,7 @@ class OnlineMonitor:
     """
 
     def __init__(self, spec: Spec, dt: float, formula: A.Formula | None = None, runs: int = 1) -> None:
-        try:
-            dt = float(dt)
-        except (TypeError, ValueError):
-            raise InputError(f"sample time must be a number, got {dt!r}") from None
-        if not (math.isfinite(dt) and dt > 0):
-            raise InputError(f"sample time must be positive and finite, got {dt}")
+        dt = sample_time(dt)
         if not (isinstance(runs, int | np.integer) and runs >= 1):
             raise InputError(f"runs must be a positive integer, got {runs!r}")
         self.spec, self.dt, self.R = spec, dt, int(runs)
