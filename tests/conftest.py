@@ -1,9 +1,20 @@
+import atexit
+import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 SPECS = ROOT / "specs"
+
+# Compiled kernels (mitlc.learn.jitcache) go to a folder of this test session, shared with
+# the processes the tests start (sweep workers, CLI runs), never to the user's ~/.cache.
+if "MITLC_CACHE_DIR" not in os.environ:
+    _cache = tempfile.mkdtemp(prefix="mitlc-test-cache-")
+    os.environ["MITLC_CACHE_DIR"] = _cache
+    atexit.register(shutil.rmtree, _cache, True)
 
 
 @pytest.fixture

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from numerics import same
 
 from mitlc.errors import TrainingError
 from mitlc.learn.features import RbfFeatures
@@ -90,9 +91,11 @@ def test_resume_after_interruption_equals_uninterrupted(tmp_path):
     resumed.load(tmp_path / "ckpt.npz")
     assert resumed.trial == 3
     resumed.train(3)
-    np.testing.assert_array_equal(resumed.xi, whole.xi)
-    np.testing.assert_array_equal(resumed.theta, whole.theta)
-    np.testing.assert_array_equal(resumed.returns, whole.returns)
+    # whole and resumed train on the kernel (auto), first on numpy: equal bits where numpy is libm
+    assert same(resumed.xi, whole.xi) and same(resumed.theta, whole.theta)
+    assert same(resumed.returns, whole.returns)
+    if whole.kernel == "numpy":  # no numba: one path, the bits
+        np.testing.assert_array_equal(resumed.xi, whole.xi)
 
 
 # ------------------------------------------------------------------ learning

@@ -66,7 +66,7 @@ intervals = st.one_of(strategies.grid_intervals(step=1.0, max_end=4), strategies
 nested = strategies.formulas(atoms=("a", "b"), interval=intervals, max_leaves=6).filter(lambda f: A.depth(f) <= 4)
 
 
-@settings(max_examples=1800, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(max_examples=900, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(nested)
 def test_never_early_and_exact_at_the_end(f: A.Formula) -> None:
     verdict, _ = run(f)

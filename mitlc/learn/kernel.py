@@ -21,8 +21,13 @@ There is one algorithm written twice, vectorised and scalar, and nothing may dri
   is tested bit for bit against the batched step;
 * every sum is numpy's pairwise ``add.reduce`` order (:func:`~mitlc.plants.base.pairwise_sum_for`):
   the numpy trial sums its dot products with ``add.reduce``, not BLAS (whose order
-  depends on the CPU), and the kernel repeats that order; numpy's float64 ``sin``,
-  ``cos`` and ``exp`` are the C library's on this kind of machine, as numba's are.
+  depends on the CPU), and the kernel repeats that order;
+* numba's ``sin``, ``cos`` and ``exp`` are the C library's, and so are numpy's float64
+  ones on x86-64 up to AVX2. On a CPU with AVX-512, numpy uses its own SIMD code, which
+  rounds some results differently in the last place: there the two paths agree to about
+  1e-13 of the parameters' size after a few trials, not to the bit (the tests check the
+  bits with numpy held to its baseline, ``NPY_DISABLE_CPU_FEATURES``, and a tolerance
+  otherwise).
 
 Scope: ODE plants with a ``kernel_step``, RBF features without warped axes, nets
 whose transitions and rewards are fully tabulated (no timed obligations). The
@@ -143,8 +148,11 @@ def atom_source(preds: Sequence[P.Pred], columns: dict[str, int]) -> str:
 def compile_atoms(preds: Sequence[P.Pred], columns: dict[str, int], jit_fn: Callable) -> Callable:
     """The atom-code function of :func:`atom_source`, defined (and compiled by ``jit_fn``)."""
     namespace: dict[str, Any] = {"np": np}
-    exec(compile(atom_source(preds, columns), "<mitlc atoms>", "exec"), namespace)  # generated from the tree
-    return jit_fn(namespace["atoms"])
+    source = atom_source(preds, columns)
+    exec(compile(source, "<mitlc atoms>", "exec"), namespace)  # generated from the tree
+    atoms = namespace["atoms"]
+    atoms.__mitlc_source__ = source  # for mitlc.learn.jitcache, which writes kernels to files
+    return jit_fn(atoms)
 
 
 # ---------------------------------------------------------------- features and the trial

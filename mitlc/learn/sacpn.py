@@ -151,7 +151,9 @@ class SacpnSettings(Settings):
     """How a trial is computed: ``numpy`` (the reference: vectorised over the runs),
     ``numba`` (the fused trial kernel of :mod:`mitlc.learn.kernel`, compiled; needs
     ``mitlc[fast]``), ``auto`` (numba when installed, else numpy). Both give the same
-    returns and parameters to the bit (tested); problems outside the kernel's scope
+    returns and parameters to the bit where numpy's float64 sin/cos/exp are the C
+    library's (x86-64 up to AVX2; on AVX-512 CPUs within about 1e-13, see
+    :mod:`mitlc.learn.kernel`; tested); problems outside the kernel's scope
     (environments, user plants without ``kernel_step``, timed obligations, untabulated
     rewards) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
@@ -374,9 +376,18 @@ class Sacpn:
         step, pc, nwork = plant.kernel_step(plant, self.params, jit)
         key = (jit, plant.name, plant.kernel_step, len(plant.state), fk.atom_source(rt._preds, rt._columns))
         trial = _KERNELS.get(key)
+        if trial is None and jit is fk.jit:  # compiled once per machine, through the disk cache
+            from mitlc.learn import jitcache
+
+            plain_step = plant.kernel_step(plant, self.params, fk.identity)[0]
+            plain = fk.trial_kernel(plain_step, fk.compile_atoms(rt._preds, rt._columns, fk.identity), fk.identity)
+            trial = jitcache.load(plain)
+            if trial is not None:
+                _KERNELS[key] = trial
         if trial is None:
             atoms = fk.compile_atoms(rt._preds, rt._columns, jit)
             trial = _KERNELS[key] = fk.trial_kernel(step, atoms, jit)
+        self._kernel_fn = trial  # the compiled (or plain) trial itself, for inspection
         feats = self.features
         A = len(feats.centres)
         width = max(len(c) for c in feats.centres)

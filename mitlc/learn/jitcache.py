@@ -1,0 +1,252 @@
+"""Compiled kernels kept on disk: numba compiles a trial once per machine, not once per process.
+
+numba caches a compiled function next to its source file, which a closure built at run
+time (the fused trial over one plant step and one spec's predicates) does not have. So
+:func:`load` writes the plain-Python closure graph of a kernel as one generated module
+(:func:`module_source`): each function reached through a closure cell or a global becomes
+a module-level function under a unique name, numbers become literals, modules imports,
+and every function is compiled by numba with ``cache=True``. The file's name is the hash
+of its text (and numba's and mitlc's versions), so a kernel is compiled the first time
+it is needed and loaded from the cache in every later process: trainings, sweep workers
+and Ray workers alike.
+
+Where: ``$MITLC_CACHE_DIR`` if set (empty: no disk cache), else
+``$XDG_CACHE_HOME/mitlc`` or ``~/.cache/mitlc``, in ``kernels/``. The files there are
+mitlc's own and safe to delete. Where the folder cannot be written, or a function's
+graph holds something that cannot be written as source, :func:`load` returns None and
+the caller compiles in memory as before: the same code, the same numbers.
+"""
+
+from __future__ import annotations
+
+import ast
+import builtins
+import hashlib
+import importlib.util
+import inspect
+import math
+import os
+import sys
+import tempfile
+import textwrap
+import types
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+__all__ = ["cache_dir", "module_source", "load"]
+
+JIT_OPTIONS = "fastmath=False, error_model='numpy', nogil=True, cache=True"
+_LOADED: dict[str, types.ModuleType] = {}
+
+
+class Unwritable(Exception):
+    """A value in a kernel's closure graph that cannot be written as module source."""
+
+
+def cache_dir() -> Path | None:
+    """The folder of the generated kernels, or None when the disk cache is off (``MITLC_CACHE_DIR=``)."""
+    env = os.environ.get("MITLC_CACHE_DIR")
+    if env is not None:
+        return Path(env) / "kernels" if env else None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "mitlc" / "kernels"
+
+
+def _python_function(value: Any) -> types.FunctionType | None:
+    """The plain-Python function behind ``value`` (itself, or a numba dispatcher's ``py_func``)."""
+    if isinstance(value, types.FunctionType):
+        return value
+    py = getattr(value, "py_func", None)
+    return py if isinstance(py, types.FunctionType) else None
+
+
+def _literal(value: Any) -> str | None:
+    if isinstance(value, bool) or value is None:
+        return repr(value)
+    if isinstance(value, int):
+        return repr(int(value))
+    if isinstance(value, float):
+        if math.isfinite(value):
+            return repr(float(value))
+        return "math.nan" if math.isnan(value) else ("math.inf" if value > 0 else "(-math.inf)")
+    return None
+
+
+class _Free(ast.NodeVisitor):
+    """Names a function body loads without binding them (its free names)."""
+
+    def __init__(self, fn: ast.FunctionDef) -> None:
+        self.bound = {a.arg for a in (*fn.args.posonlyargs, *fn.args.args, *fn.args.kwonlyargs)}
+        if fn.args.vararg or fn.args.kwarg:
+            raise Unwritable(f"{fn.name} takes *args or **kwargs")
+        self.loads: list[str] = []
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store | ast.Del):
+                self.bound.add(node.id)
+            elif isinstance(node, ast.FunctionDef | ast.Lambda | ast.ClassDef) and node is not fn:
+                raise Unwritable(f"{fn.name} defines a function or class inside")
+            elif isinstance(node, ast.Global | ast.Nonlocal):
+                raise Unwritable(f"{fn.name} declares global or nonlocal names")
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load) and node.id not in self.bound:
+                self.loads.append(node.id)
+
+
+class _Writer:
+    """Writes a closure graph as module source, one function or constant per unique name."""
+
+    def __init__(self) -> None:
+        self.names: dict[int, str] = {}  # id(value) -> its name in the module
+        self.taken: set[str] = set()
+        self.imports: dict[str, str] = {}  # name -> module
+        self.constants: list[str] = []
+        self.functions: list[str] = []
+        self.keep: list[Any] = []  # the values named, alive while ids are keys
+
+    def _unique(self, base: str) -> str:
+        base = base.strip("_") or "f"
+        name, k = base, 1
+        while name in self.taken or hasattr(builtins, name) or name in ("math", "np", "numba", "_jit"):
+            k += 1
+            name = f"{base}_{k}"
+        self.taken.add(name)
+        return name
+
+    def value(self, name: str, value: Any) -> str:
+        """The module-level name that holds ``value`` (written once)."""
+        if isinstance(value, types.ModuleType):
+            if value.__name__ == "numpy":
+                return "np"
+            if value.__name__ == "math":
+                return "math"
+            key = f"mod:{value.__name__}"
+            if key not in self.imports:
+                self.imports[key] = self._unique(name)
+            return self.imports[key]
+        fn = _python_function(value)
+        if fn is not None:
+            return self.function(fn)
+        text = _literal(value)
+        if text is None:
+            raise Unwritable(f"'{name}' is a {type(value).__name__}, not a number, module or function")
+        if id(value) not in self.names:
+            self.keep.append(value)
+            self.names[id(value)] = self._unique(name)
+            self.constants.append(f"{self.names[id(value)]} = {text}")
+        return self.names[id(value)]
+
+    def function(self, fn: types.FunctionType) -> str:
+        if id(fn) in self.names:
+            return self.names[id(fn)]
+        source = getattr(fn, "__mitlc_source__", None)
+        if source is None:
+            try:
+                source = textwrap.dedent(inspect.getsource(fn))
+            except (OSError, TypeError) as exc:
+                raise Unwritable(f"no source for {fn.__qualname__}") from exc
+        tree = ast.parse(source)
+        node = tree.body[0]
+        if not isinstance(node, ast.FunctionDef) or len(tree.body) != 1:
+            raise Unwritable(f"{fn.__qualname__} is not one plain function definition")
+        if node.decorator_list:
+            raise Unwritable(f"{fn.__qualname__} is decorated")
+        node.returns = None
+        for a in (*node.args.posonlyargs, *node.args.args, *node.args.kwonlyargs):
+            a.annotation = None
+        if fn.__defaults__ or fn.__kwdefaults__:
+            raise Unwritable(f"{fn.__qualname__} has default arguments")
+        self.keep.append(fn)
+        self.names[id(fn)] = own = self._unique(fn.__name__)
+        cells = dict(zip(fn.__code__.co_freevars, [c.cell_contents for c in fn.__closure__ or ()], strict=True))
+        renames: dict[str, str] = {}
+        for free in dict.fromkeys(_Free(node).loads):  # in the order they are read
+            if free in cells:
+                renames[free] = self.value(free, cells[free])
+            elif free in fn.__globals__:
+                renames[free] = self.value(free, fn.__globals__[free])
+            elif not hasattr(builtins, free):
+                raise Unwritable(f"{fn.__qualname__} reads '{free}', which is not defined")
+        local = _Free(node).bound
+        if any(new in local and new != old for old, new in renames.items()):
+            raise Unwritable(f"{fn.__qualname__}: a local name equals a module-level one")
+        for n in ast.walk(node):
+            if isinstance(n, ast.Name) and n.id in renames and isinstance(n.ctx, ast.Load):
+                n.id = renames[n.id]
+        node.name = own
+        if isinstance(node.body[0], ast.Expr) and isinstance(getattr(node.body[0], "value", None), ast.Constant):
+            node.body = node.body[1:] or [ast.Pass()]  # the docstring
+        self.functions.append(ast.unparse(node) + f"\n\n\n{own} = _jit({own})")
+        return own
+
+
+def module_source(fn: Callable, versions: str) -> tuple[str, str]:
+    """``(source, name)``: the module that defines ``fn``'s closure graph compiled with
+    ``cache=True``, and ``fn``'s name in it. Raises :class:`Unwritable`."""
+    py = _python_function(fn)
+    if py is None:
+        raise Unwritable(f"{fn!r} is not a Python function")
+    w = _Writer()
+    name = w.function(py)
+    head = [
+        f'"""Generated by mitlc from {py.__module__}.{py.__qualname__} ({versions}); safe to delete."""',
+        "",
+        "import math",
+        "",
+        "import numba",
+        "import numpy as np",
+        *[f"import {key[4:]} as {alias}" for key, alias in w.imports.items()],
+        "",
+        f"_jit = numba.njit({JIT_OPTIONS})",
+        "",
+        *w.constants,
+    ]
+    return "\n".join(head) + "\n\n\n" + "\n\n\n".join(w.functions) + "\n", name
+
+
+def _versions() -> str:
+    import numba
+
+    from mitlc import __version__
+
+    return f"mitlc {__version__}, numba {numba.__version__}, Python {sys.version_info[0]}.{sys.version_info[1]}"
+
+
+def load(fn: Callable) -> Callable | None:
+    """``fn`` (a plain-Python kernel, closures and all) compiled by numba through a module
+    in the disk cache; None where there is no cache or ``fn`` cannot be written as source."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    try:
+        source, name = module_source(fn, _versions())
+    except Unwritable:
+        return None
+    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
+    module = _LOADED.get(digest)
+    if module is None:
+        path = folder / f"kernel_{digest}.py"
+        try:
+            if not path.exists():
+                folder.mkdir(parents=True, exist_ok=True)
+                fd, tmp = tempfile.mkstemp(dir=folder, prefix=".kernel-", suffix=".tmp")
+                try:
+                    with os.fdopen(fd, "w") as fh:
+                        fh.write(source)
+                    try:
+                        os.link(tmp, path)  # atomic; another process's equal file wins
+                    except FileExistsError:
+                        pass
+                finally:
+                    os.unlink(tmp)
+            if path.read_text() != source:  # a damaged file: not ours to trust
+                return None
+        except OSError:
+            return None
+        spec = importlib.util.spec_from_file_location(f"mitlc_kernel_{digest}", path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module  # numba's cache finds a function's globals by module name
+        spec.loader.exec_module(module)
+        _LOADED[digest] = module
+    return getattr(module, name)
