@@ -73,24 +73,21 @@ def _literal(value: Any) -> str | None:
     return None
 
 
-class _Free(ast.NodeVisitor):
-    """Names a function body loads without binding them (its free names)."""
-
-    def __init__(self, fn: ast.FunctionDef) -> None:
-        self.bound = {a.arg for a in (*fn.args.posonlyargs, *fn.args.args, *fn.args.kwonlyargs)}
-        if fn.args.vararg or fn.args.kwarg:
-            raise Unwritable(f"{fn.name} takes *args or **kwargs")
-        self.loads: list[str] = []
-        for node in ast.walk(fn):
-            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store | ast.Del):
-                self.bound.add(node.id)
-            elif isinstance(node, ast.FunctionDef | ast.Lambda | ast.ClassDef) and node is not fn:
-                raise Unwritable(f"{fn.name} defines a function or class inside")
-            elif isinstance(node, ast.Global | ast.Nonlocal):
-                raise Unwritable(f"{fn.name} declares global or nonlocal names")
-        for node in ast.walk(fn):
-            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load) and node.id not in self.bound:
-                self.loads.append(node.id)
+def _free_names(fn: ast.FunctionDef) -> tuple[set[str], list[str]]:
+    """``(bound, free)``: the names a function body binds, and those it loads without binding
+    them, in the order they are read."""
+    bound = {a.arg for a in (*fn.args.posonlyargs, *fn.args.args, *fn.args.kwonlyargs)}
+    if fn.args.vararg or fn.args.kwarg:
+        raise Unwritable(f"{fn.name} takes *args or **kwargs")
+    for node in ast.walk(fn):
+        if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store | ast.Del):
+            bound.add(node.id)
+        elif isinstance(node, ast.FunctionDef | ast.Lambda | ast.ClassDef) and node is not fn:
+            raise Unwritable(f"{fn.name} defines a function or class inside")
+        elif isinstance(node, ast.Global | ast.Nonlocal):
+            raise Unwritable(f"{fn.name} declares global or nonlocal names")
+    loads = (n.id for n in ast.walk(fn) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load))
+    return bound, list(dict.fromkeys(name for name in loads if name not in bound))
 
 
 class _Writer:
@@ -99,7 +96,7 @@ class _Writer:
     def __init__(self) -> None:
         self.names: dict[int, str] = {}  # id(value) -> its name in the module
         self.taken: set[str] = set()
-        self.imports: dict[str, str] = {}  # name -> module
+        self.imports: dict[str, str] = {}  # module name -> its name in the module
         self.constants: list[str] = []
         self.functions: list[str] = []
         self.keep: list[Any] = []  # the values named, alive while ids are keys
@@ -120,10 +117,9 @@ class _Writer:
                 return "np"
             if value.__name__ == "math":
                 return "math"
-            key = f"mod:{value.__name__}"
-            if key not in self.imports:
-                self.imports[key] = self._unique(name)
-            return self.imports[key]
+            if value.__name__ not in self.imports:
+                self.imports[value.__name__] = self._unique(name)
+            return self.imports[value.__name__]
         fn = _python_function(value)
         if fn is not None:
             return self.function(fn)
@@ -159,15 +155,15 @@ class _Writer:
         self.keep.append(fn)
         self.names[id(fn)] = own = self._unique(fn.__name__)
         cells = dict(zip(fn.__code__.co_freevars, [c.cell_contents for c in fn.__closure__ or ()], strict=True))
+        local, free_names = _free_names(node)
         renames: dict[str, str] = {}
-        for free in dict.fromkeys(_Free(node).loads):  # in the order they are read
+        for free in free_names:
             if free in cells:
                 renames[free] = self.value(free, cells[free])
             elif free in fn.__globals__:
                 renames[free] = self.value(free, fn.__globals__[free])
             elif not hasattr(builtins, free):
                 raise Unwritable(f"{fn.__qualname__} reads '{free}', which is not defined")
-        local = _Free(node).bound
         if any(new in local and new != old for old, new in renames.items()):
             raise Unwritable(f"{fn.__qualname__}: a local name equals a module-level one")
         for n in ast.walk(node):
@@ -195,7 +191,7 @@ def module_source(fn: Callable, versions: str) -> tuple[str, str]:
         "",
         "import numba",
         "import numpy as np",
-        *[f"import {key[4:]} as {alias}" for key, alias in w.imports.items()],
+        *[f"import {module} as {alias}" for module, alias in w.imports.items()],
         "",
         f"_jit = numba.njit({JIT_OPTIONS})",
         "",

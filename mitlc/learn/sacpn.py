@@ -373,20 +373,22 @@ class Sacpn:
 
         plant, rt = self.plant, self.runtime
         assert plant.kernel_step is not None and rt.tables is not None and rt.tables.reward is not None
-        step, pc, nwork = plant.kernel_step(plant, self.params, jit)
+        plain_step, pc, nwork = plant.kernel_step(plant, self.params, fk.identity)  # pc, nwork: whatever jit
         key = (jit, plant.name, plant.kernel_step, len(plant.state), fk.atom_source(rt._preds, rt._columns))
         trial = _KERNELS.get(key)
-        if trial is None and jit is fk.jit:  # compiled once per machine, through the disk cache
-            from mitlc.learn import jitcache
-
-            plain_step = plant.kernel_step(plant, self.params, fk.identity)[0]
-            plain = fk.trial_kernel(plain_step, fk.compile_atoms(rt._preds, rt._columns, fk.identity), fk.identity)
-            trial = jitcache.load(plain)
-            if trial is not None:
-                _KERNELS[key] = trial
         if trial is None:
-            atoms = fk.compile_atoms(rt._preds, rt._columns, jit)
-            trial = _KERNELS[key] = fk.trial_kernel(step, atoms, jit)
+            if jit is fk.identity or jit is fk.jit:
+                plain = fk.trial_kernel(plain_step, fk.compile_atoms(rt._preds, rt._columns, fk.identity), fk.identity)
+                if jit is fk.identity:
+                    trial = plain
+                else:  # compiled once per machine, through the disk cache
+                    from mitlc.learn import jitcache
+
+                    trial = jitcache.load(plain)
+            if trial is None:  # compiled in memory, for this process
+                step = plant.kernel_step(plant, self.params, jit)[0]
+                trial = fk.trial_kernel(step, fk.compile_atoms(rt._preds, rt._columns, jit), jit)
+            _KERNELS[key] = trial
         self._kernel_fn = trial  # the compiled (or plain) trial itself, for inspection
         feats = self.features
         A = len(feats.centres)
