@@ -3,8 +3,8 @@
 Run:  python bench/bench_gym.py [--steps 2000] [--repeat 3] [--spec pendulum/p1_swing_up]
 
 Steps ``Pendulum-v1`` (its bare step, unwrapped) and :class:`mitlc.gym.MitlRewardWrapper`
-around it with a constant input, in one process: the wrapper with ``verdict="off"`` and
-``"step"`` as they are, and the old path of both (before #17: the net stepped on markings,
+around it with a constant input, in one process: the wrapper with ``verdict="off"``, ``"end"``
+and ``"step"`` as they are, and the old path of each (before #17: the net stepped on markings,
 ``NetRuntime.step`` and ``.reward``, and for ``"step"`` the offline monitor over the whole
 prefix ``x_0 .. x_k`` after every step, which this bench still calls). Episodes are
 truncated at the spec's horizon. It prints the median microseconds per step of
@@ -30,6 +30,7 @@ def old_path(env: MitlRewardWrapper, verdict: bool) -> Any:
     """The wrapper's step as it was: markings, not codes; the offline monitor on the prefix."""
     env._marking_of = None  # noqa: SLF001 - a bench of the wrapper's own internals
     env._code = None  # noqa: SLF001
+    env._step1 = None  # noqa: SLF001
     online = env._online  # noqa: SLF001
     env._online = None  # noqa: SLF001
     step = env.step
@@ -69,7 +70,7 @@ def main() -> None:
     print(f"Pendulum-v1 with {args.spec} ({spec.formula}); microseconds per step, median of {args.repeat}")
     print(f"  bare environment step: {t_bare:8.1f}")
     print(f"  {'verdict':<8} {'new':>8} {'over bare':>10} {'old':>8} {'over bare':>10} {'old/new':>8}")
-    for verdict in ("off", "step"):
+    for verdict in ("off", "end", "step"):
 
         def make(verdict: str = verdict) -> MitlRewardWrapper:
             env = gym.make("Pendulum-v1").unwrapped

@@ -94,8 +94,11 @@ MARKING_OBS = ("dict", "box")
 VERDICT = ("step", "end", "off")
 """When ``info["verdict"]`` is computed: every step, at the end of an episode, never."""
 
+_SCALARS = (float, int, np.floating, np.integer)
+_TWO_PI = 2 * np.pi
 
-def pendulum_v1_state(obs: Any) -> dict[str, np.ndarray]:
+
+def pendulum_v1_state(obs: Any) -> dict[str, Any]:
     """Gymnasium ``Pendulum-v1`` observation ``[cos th, sin th, thdot]`` -> ``{"q", "qdot"}``.
 
     Gymnasium's ``theta = 0`` is upright and positive ``thdot`` increases theta,
@@ -103,13 +106,16 @@ def pendulum_v1_state(obs: Any) -> dict[str, np.ndarray]:
     wrapped to ``[-pi, pi)``.  Works on one observation or a batch ``(..., 3)``.
 
     >>> pendulum_v1_state(np.array([-1.0, 0.0, 0.5], dtype=np.float32))
-    {'q': array(-3.14159265), 'qdot': array(0.5)}
+    {'q': -3.141592653589793, 'qdot': 0.5}
     >>> pendulum_v1_state(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -2.0]]))["q"].round(4)
     array([0.    , 1.5708])
     """
     o = np.asarray(obs, dtype=float)
     if o.shape[-1:] != (3,):
         raise InputError(f"a Pendulum-v1 observation has 3 entries [cos th, sin th, thdot], got shape {o.shape}")
+    if o.ndim == 1:  # one observation: floats, the same numbers (wrap_angle's operations on a float)
+        q = float(np.arctan2(o[1], o[0]))
+        return {"q": (q + math.pi) % _TWO_PI - math.pi, "qdot": float(o[2])}
     return {"q": np.asarray(wrap_angle(np.arctan2(o[..., 1], o[..., 0]))), "qdot": o[..., 2]}
 
 
@@ -308,6 +314,10 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                     "(or a spec whose plant is gym:ID with 'state' lines)"
                 )
             observe = _spec_observe(plant, base)
+        self._periodic = np.array(
+            [self.mitl_spec.plant is not None and self.mitl_spec.plant.var(n).periodic for n in self.state_names],
+            dtype=bool,
+        )
         self._read = self._reader(observe, base)
         # a gym:ID spec's init is a condition on the environment's starts (a reset outside is
         # redone); another plant's init describes that plant's starts, which an environment
@@ -318,10 +328,6 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             for r in (self.mitl_spec.init if own else ())
             if r.var in self.state_names
         ]
-        self._periodic = np.array(
-            [self.mitl_spec.plant is not None and self.mitl_spec.plant.var(n).periodic for n in self.state_names],
-            dtype=bool,
-        )
         self._monitor = None
         self._online = None
         if verdict != "off":
@@ -345,34 +351,51 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if rt.tables is not None and not rt.counters.size and rt.n_codes * rt.n_places <= 1 << 20:
             table = rt.tables.markings if rt.tables.markings is not None else rt.decode(np.arange(rt.n_codes))
             self._marking_of = np.asarray(table, dtype=np.int64)
+        # one sample in plain Python where the tables hold the whole step (no timed obligations):
+        # the propositions on floats, then look-ups by int; the marking as a row of a table
+        self._step1 = rt.sample_stepper() if self._marking_of is not None else None
+        if self._step1 is not None and (rt.tables is None or rt.tables.reward is None):
+            self._step1 = None
+        self._code1 = 0
+        if self._step1 is not None:
+            assert rt.tables is not None and rt.tables.reward is not None and self._marking_of is not None
+            self._reward_of = rt.tables.reward
+            self._M_of = self._marking_of[:, None, :]  # code -> (1, places), the shape of _M
+            self._row_of = self._marking_of.astype(self._marking_dtype)
 
     # ------------------------------------------------------------ observation -> state
-    def _reader(self, observe: Observe, base: spaces.Space) -> Callable[[Any], np.ndarray]:
+    def _reader(self, observe: Observe, base: spaces.Space) -> Callable[[Any], list[float]]:
         names = self.state_names
         column = {n: i for i, n in enumerate(names)}
         needed = self._needed
         if callable(observe) and not isinstance(observe, Mapping):
             fn = observe
 
-            def read(obs: Any) -> np.ndarray:
+            seen: list[Any] = [None]  # the last key set found good: later samples check it in one comparison
+
+            def read(obs: Any) -> list[float]:
                 values = fn(obs)
                 if not isinstance(values, Mapping):
                     raise InputError(
                         f"observe() must return a mapping from state variable to value, got {type(values).__name__}"
                     )
-                missing = [n for n in needed if n not in values]
-                if missing:
-                    raise InputError(
-                        f"observe() gave no value for state variable '{missing[0]}' "
-                        f"(the propositions read {', '.join(needed)})"
-                    )
-                x = np.full(len(names), np.nan)
-                for key, v in values.items():
-                    if key not in column:
+                if values.keys() != seen[0]:
+                    missing = [n for n in needed if n not in values]
+                    if missing:
                         raise InputError(
-                            f"observe() gave '{key}', which is not a state variable of the spec ({', '.join(names)})"
+                            f"observe() gave no value for state variable '{missing[0]}' "
+                            f"(the propositions read {', '.join(needed)})"
                         )
-                    x[column[key]] = float(np.asarray(v, dtype=float))
+                    for key in values:
+                        if key not in column:
+                            raise InputError(
+                                f"observe() gave '{key}', which is not a state variable of the spec "
+                                f"({', '.join(names)})"
+                            )
+                    seen[0] = frozenset(values)
+                x = [math.nan] * len(names)
+                for key, v in values.items():
+                    x[column[key]] = float(v) if isinstance(v, _SCALARS) else float(np.asarray(v, dtype=float))
                 return x
 
         elif isinstance(observe, Mapping):
@@ -406,31 +429,33 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                     raise InputError(f"observe maps '{key}' to {how!r}: expected an index or a function obs -> value")
             needs_flat = any(isinstance(h, (int, np.integer)) for h in observe.values())
 
-            def read(obs: Any) -> np.ndarray:
+            def read(obs: Any) -> list[float]:
                 flat = np.asarray(spaces.flatten(base, obs), dtype=float).reshape(-1) if needs_flat else np.empty(0)
-                x = np.full(len(names), np.nan)
+                x = [math.nan] * len(names)
                 for col, get in getters:
-                    x[col] = get(obs, flat)
+                    x[col] = float(get(obs, flat))
                 return x
 
         else:
             raise InputError(f"observe must be a function or a mapping, got {type(observe).__name__}")
 
-        def checked(obs: Any) -> np.ndarray:
+        checks = [(n, column[n]) for n in needed]
+        angles = [i for i, n in enumerate(names) if self._periodic[i]]
+
+        def checked(obs: Any) -> list[float]:
             x = read(obs)
-            for n in needed:
-                v = x[column[n]]
-                if not np.isfinite(v):
-                    raise InputError(f"observe gave a non-finite value for '{n}': {v}")
+            for n, i in checks:
+                if not math.isfinite(x[i]):
+                    raise InputError(f"observe gave a non-finite value for '{n}': {x[i]}")
+            for i in angles:  # wrap_angle's operations on one float (Python's % is numpy's remainder)
+                x[i] = (x[i] + math.pi) % _TWO_PI - math.pi
             return x
 
         return checked
 
     def state(self, obs: Any) -> np.ndarray:
         """The spec's state ``(n,)`` (``state_names`` order) read off ``obs``; angles wrapped."""
-        x = self._read(obs)
-        x[self._periodic] = wrap_angle(x[self._periodic])
-        return x
+        return np.array(self._read(obs), dtype=float)
 
     # ------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
@@ -452,6 +477,7 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._M = self.runtime.reset(x0[None, :])
         if self._marking_of is not None:
             self._code = self.runtime.encode(self._M)
+            self._code1 = int(self._code[0])
         info = dict(info)
         info.update(self._info())
         if self._online is not None:
@@ -464,37 +490,46 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, env_reward, terminated, truncated, info = self.env.step(action)
-        x = self.state(obs)
-        self._k += 1
-        if self._k >= self._trace.shape[0]:
+        xs = self._read(obs)
+        k = self._k = self._k + 1
+        if k >= self._trace.shape[0]:
             self._trace = np.concatenate([self._trace, np.zeros_like(self._trace)])
-        self._trace[self._k] = x
-        if self.runtime.steps is not None and self._k > self.runtime.steps:
+        self._trace[k] = xs
+        if self.runtime.steps is not None and k > self.runtime.steps:
             raise InputError(
                 f"the episode ran past the spec's horizon ({self.mitl_spec.horizon} s): the timed obligations "
                 "end there; use truncate_at_horizon=True or a longer horizon",
                 file=self.mitl_spec.path,
             )
-        if self._code is not None and self._marking_of is not None:
-            code1 = self.runtime.step_code(self._code, x[None, :], self._k * self.dt)
-            reward = float(self.runtime.reward_code(self._code, code1)[0])
-            self._code, self._M = code1, self._marking_of[code1]
+        tau = k * self.dt
+        if self._step1 is not None:  # one sample on Python numbers
+            code = self._code1
+            self._code1 = code1 = self._step1(code, xs, tau)
+            reward = float(self._reward_of[code, code1])
+            self._M = self._M_of[code1]
         else:
-            M_next = self.runtime.step(self._M, x[None, :], self._k * self.dt)
-            reward = float(self.runtime.reward(self._M, M_next)[0])
-            self._M = M_next
-        if self.horizon is not None and self._k * self.dt >= self.horizon - 1e-9 * max(1.0, self.horizon):
+            x = self._trace[k : k + 1]
+            if self._code is not None and self._marking_of is not None:
+                code_next = self.runtime.step_code(self._code, x, tau)
+                reward = float(self.runtime.reward_code(self._code, code_next)[0])
+                self._code, self._M = code_next, self._marking_of[code_next]
+            else:
+                M_next = self.runtime.step(self._M, x, tau)
+                reward = float(self.runtime.reward(self._M, M_next)[0])
+                self._M = M_next
+        if self.horizon is not None and tau >= self.horizon - 1e-9 * max(1.0, self.horizon):
             truncated = True
         info = dict(info)
         info["env_reward"] = env_reward
-        info.update(self._info())
+        info["marking"] = self.marking
+        info["tau"] = tau
         if terminated or truncated:  # the whole episode's verdict, with when and why it failed
             if self._verdict_mode != "off":
                 self._add_verdict(info)
             if self._online is not None:
-                self._online.update({n: x[i : i + 1] for n, i in self._judged})
+                self._online.update({n: self._trace[k : k + 1, i] for n, i in self._judged})
         elif self._online is not None:
-            self._add_online_verdict(info, x)
+            self._add_online_verdict(info, self._trace[k])
         return self._observation(obs), reward, bool(terminated), bool(truncated), info
 
     # ------------------------------------------------------------ helpers
@@ -505,6 +540,8 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         int8 when every place holds at most one token; int64 when the net
         counts (the counters of ``violations = counted``).
         """
+        if self._step1 is not None:
+            return self._row_of[self._code1].copy()
         return self._M[0].astype(self._marking_dtype)
 
     @property

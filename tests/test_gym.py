@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 gym = pytest.importorskip("gymnasium", reason="the gym extra is not installed: pip install '.[test]'")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
@@ -19,6 +21,7 @@ from mitlc.errors import InputError, MitlError  # noqa: E402
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
 from mitlc.learn.runtime import NetRuntime  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
+from mitlc.plants.base import wrap_angle  # noqa: E402
 from mitlc.spec.parse import load_spec, parse_spec  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -147,6 +150,45 @@ def test_every_thesis_spec_rewards_as_the_runtime(spec_path: Path, violations: s
         violated = m[1:, watched].sum(axis=1) > 0
         np.testing.assert_allclose(rewards, np.array(off) - rs.penalty * violated)
         assert violated.any()  # the random agent violates every spec at least once
+
+
+@pytest.mark.parametrize("violations", ["off", "permanent"])
+@pytest.mark.parametrize("spec_path", sorted(SPECS.glob("p*.mitl")), ids=lambda p: p.stem)
+def test_one_sample_path_is_the_array_path(spec_path: Path, violations: str) -> None:
+    """The thesis nets step one sample on Python numbers (NetRuntime.sample_stepper: clocks or none);
+    forced onto the array path, the same wrapper gives the same rewards, markings and observations."""
+    spec = load_spec(spec_path)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=violations))
+    fast = MitlRewardWrapper(gym.make("Pendulum-v1"), rs, pendulum_v1_state, verdict="end", truncate_at_horizon=True)
+    slow = MitlRewardWrapper(gym.make("Pendulum-v1"), rs, pendulum_v1_state, verdict="end", truncate_at_horizon=True)
+    assert fast._step1 is not None  # noqa: SLF001 - which path the wrapper takes
+    slow._step1 = None  # noqa: SLF001
+    a, b = random_rollout(fast, seed=3, steps=60), random_rollout(slow, seed=3, steps=60)
+    assert a[2] == b[2] and a[4] == b[4]
+    for oa, ob in zip(a[1], b[1], strict=True):
+        assert oa.keys() == ob.keys()
+        for key in oa:
+            np.testing.assert_array_equal(oa[key], ob[key])
+            assert oa[key].dtype == ob[key].dtype
+    for ia, ib in zip(a[3], b[3], strict=True):
+        np.testing.assert_array_equal(ia.pop("marking"), ib.pop("marking"))
+        assert ia == ib  # tau, env_reward and the episode's verdict
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(min_value=-1.0, max_value=1.0, allow_nan=False), st.floats(-1.0, 1.0), st.floats(-8.0, 8.0))
+def test_one_observation_reads_as_the_batch(c: float, s: float, thdot: float) -> None:
+    """pendulum_v1_state and the wrapper's reader on one observation (floats, Python's %) give the
+    numbers of the batch path (numpy arrays, wrap_angle), to the bit."""
+    obs = np.array([c, s, thdot], dtype=np.float32)
+    one, batch = pendulum_v1_state(obs), pendulum_v1_state(obs[None, :])
+    assert one["q"] == batch["q"][0] and one["qdot"] == batch["qdot"][0]
+    env = wrapped(P1, verdict="off")
+    x = env.state(obs)
+    assert x[0] == wrap_angle(np.arctan2(np.float64(obs[1]), np.float64(obs[0]))) and x[1] == np.float64(obs[2])
+    raw = 3.5 * np.pi * c + 40 * s  # angles far outside [-pi, pi)
+    wrapping = MitlRewardWrapper(gym.make("Pendulum-v1"), P1, {"q": lambda o: raw, "qdot": 2}, verdict="off")
+    assert wrapping.state(obs)[0] == wrap_angle(np.array([raw]))[0]
 
 
 def test_counting_nets_observe_counts_in_a_box() -> None:

@@ -14,6 +14,7 @@ is what keeps the two copies of Algorithm 1 from drifting apart.
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -21,14 +22,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numerics import LIBM, same
 
 from mitlc.errors import TrainingError
 from mitlc.learn import kernel as fk
+from mitlc.learn.runtime import compile_predicate
 from mitlc.learn.sacpn import Sacpn, SacpnSettings
 from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.plants import PLANTS, make_integrator
 from mitlc.plants.base import pairwise_sum
+from mitlc.spec import predicates as P
 from mitlc.spec.parse import load_spec, parse_spec
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -211,3 +216,43 @@ def test_atom_code_of_the_generated_predicates() -> None:
     atoms = fk.compile_atoms(rt._preds, rt._columns, fk.identity)
     x = np.random.default_rng(2).uniform([-np.pi, -20], [np.pi, 20], (500, 2))
     assert [atoms(row) for row in x] == list(rt.atom_code(x))
+
+
+# ------------------------------------------------------------ one sample in plain Python
+_COLS = {"q": 0, "v": 1}
+_NUMS = st.sampled_from([0.0, -0.0, 0.3, -1.5, 2.0, 1e-300, 1e300, math.pi])
+_ARITH = st.recursive(
+    st.one_of(st.sampled_from(["q", "v"]).map(P.Var), _NUMS.map(P.Num)),
+    lambda c: st.one_of(
+        c.map(P.Neg),
+        st.builds(P.BinOp, st.sampled_from(["+", "-", "*", "/"]), c, c),
+        st.builds(lambda f, a: P.Call(f, (a,)), st.sampled_from(["abs", "sqrt", "sin", "cos", "tan", "exp"]), c),
+        st.builds(lambda f, a, b: P.Call(f, (a, b)), st.sampled_from(["min", "max", "atan2"]), c, c),
+    ),
+    max_leaves=5,
+)
+_CMP = st.builds(
+    lambda ops, terms: P.Compare(tuple(terms[: len(ops) + 1]), tuple(ops)),
+    st.lists(st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), min_size=1, max_size=2),
+    st.lists(_ARITH, min_size=3, max_size=3),
+)
+_BOOL = st.recursive(
+    _CMP,
+    lambda c: st.one_of(c.map(P.PNot), st.builds(P.PAnd, c, c), st.builds(P.POr, c, c)),
+    max_leaves=3,
+)
+_STATE = st.floats(allow_nan=False, allow_infinity=False, width=64) | st.sampled_from([0.0, -0.0, 0.3, -0.3, 1.0])
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(_BOOL, min_size=1, max_size=3), st.lists(st.tuples(_STATE, _STATE), min_size=1, max_size=4))
+def test_scalar_atoms_are_the_numpy_atom_code(preds, states) -> None:
+    """The wrapper's one-sample atom code (plain Python floats) gives numpy's truths, division by
+    zero, square roots of negatives, overflow and signed zeros included."""
+    atoms = fk.scalar_atoms(preds, _COLS)
+    compiled = [compile_predicate(p, _COLS) for p in preds]
+    x = np.array(states, dtype=float)
+    with np.errstate(all="ignore"):
+        want = sum(np.asarray(f(x), dtype=np.int64) << i for i, f in enumerate(compiled))
+        got = [atoms([float(a), float(b)]) for a, b in states]
+    assert got == list(np.broadcast_to(want, (len(states),)))

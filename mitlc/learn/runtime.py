@@ -614,6 +614,33 @@ class NetRuntime:
             code_next = tables.next_code[self.clock_code(tau_next), code, self.atom_code(x_next)]
         return self.advance_code(code_next, x_next)
 
+    def sample_stepper(self) -> Callable[[int, Sequence[float], float], int] | None:
+        """:meth:`step_code` for one run on Python numbers, ``step(code, x, tau) -> code``, with ``x`` the
+        state as a sequence of floats (``state_names`` order): the propositions in plain Python
+        (:func:`mitlc.learn.kernel.scalar_atoms`, numpy's truths) and one table look-up, for callers
+        that step one sample at a time (the Gymnasium wrapper). None where a step needs more than
+        the tables: no tables, timed obligations, or counting places.
+        """
+        tables = self.tables
+        if tables is None or self.timed or self.counters.size:
+            return None
+        from mitlc.learn.kernel import scalar_atoms  # the same stage; kernel is only needed here
+
+        atoms = scalar_atoms(self._preds, self._columns)
+        table = tables.next_code
+        if not self.compact and not self.clocks:
+
+            def step(code: int, x: Sequence[float], tau: float) -> int:
+                return int(table[0, code, atoms(x)])
+
+        else:
+            clock = self.clock_code
+
+            def step(code: int, x: Sequence[float], tau: float) -> int:
+                return int(table[clock(tau), code, atoms(x)])
+
+        return step
+
     def trace_markings(self, codes: np.ndarray) -> np.ndarray:
         """Full markings ``(R, N+1, P)`` of code sequences ``(R, N+1)``, counters included.
 
