@@ -511,11 +511,11 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             x = self._trace[k : k + 1]
             if self._code is not None and self._marking_of is not None:
                 code_next = self.runtime.step_code(self._code, x, tau)
-                reward = float(self.runtime.reward_code(self._code, code_next)[0])
+                reward = float(self.runtime.reward_code(self._code, code_next, x)[0])
                 self._code, self._M = code_next, self._marking_of[code_next]
             else:
                 M_next = self.runtime.step(self._M, x, tau)
-                reward = float(self.runtime.reward(self._M, M_next)[0])
+                reward = float(self.runtime.reward(self._M, M_next, x)[0])
                 self._M = M_next
         if self.horizon is not None and tau >= self.horizon - 1e-9 * max(1.0, self.horizon):
             truncated = True
@@ -716,7 +716,7 @@ class MitlPlantEnv(gym.Env):
         self._integrate(self._x, u)
         self._k += 1
         M_next = self.runtime.step(self._M, self._x, self._k * self.dt)
-        reward = float(self.runtime.reward(self._M, M_next)[0])
+        reward = float(self.runtime.reward(self._M, M_next, self._x)[0])
         self._M = M_next
         truncated = self._k >= self.steps
         return self._obs(), reward, False, truncated, self._info()

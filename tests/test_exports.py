@@ -181,6 +181,23 @@ def cli_json(spec: Path, *extra: str) -> dict:
     return json.loads(r.output)
 
 
+@pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
+def test_shaped_reward_json_validates_against_the_schema(spec_path: Path, validator) -> None:
+    d = cli_json(spec_path, "--reward", "shaped", "--violations", "permanent")
+    assert [f"{list(e.absolute_path)}: {e.message}" for e in validator.iter_errors(d)] == []
+    assert d["options"]["reward"] == "shaped"
+    graded = []
+    stack = [d["reward_tree"]]
+    while stack:
+        node = stack.pop()
+        if node["op"] == "graded":
+            graded.append(node)
+        stack.extend(v for v in node.values() if isinstance(v, dict))
+        stack.extend(a for a in node.get("args", ()))
+    assert graded  # every spec's propositions are graded
+    assert all(n["flat"]["op"] == "sum" for n in graded)  # each replaces its p_a - p_not_a
+
+
 @pytest.mark.parametrize("violations", VIOLATIONS)
 @pytest.mark.parametrize("conjunction", ["literal", "active"])
 @pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
@@ -189,7 +206,12 @@ def test_cli_json_validates_against_the_schema(spec_path: Path, conjunction: str
     errors = [f"{list(e.absolute_path)}: {e.message}" for e in validator.iter_errors(d)]
     assert errors == []
     spec = load_spec(spec_path)
-    assert d["options"] == {"conjunction": conjunction, "violations": violations, "clock": spec.option("clock")}
+    assert d["options"] == {
+        "conjunction": conjunction,
+        "violations": violations,
+        "clock": spec.option("clock"),
+        "reward": spec.option("reward"),
+    }
     assert (d["penalty"] > 0) == (violations != "off")
     rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations))
     assert d == json.loads(to_json(rs))
@@ -207,7 +229,8 @@ def test_the_extra_specs_cover_every_role_and_op(validator) -> None:
     roles, kinds, ops = set(), set(), set()
     for spec, violations in [*((p, v) for p in SPECS for v in VIOLATIONS), *((e, "off") for e in EXTRA.values())]:
         parsed = load_spec(spec) if isinstance(spec, Path) else parse_spec(spec)
-        d = to_dict(compile_spec(parsed, CompileOptions.from_spec(parsed, violations=violations)))
+        reward = "shaped" if violations == "permanent" else None  # the graded leaves too
+        d = to_dict(compile_spec(parsed, CompileOptions.from_spec(parsed, violations=violations, reward=reward)))
         roles |= {s["role"] for s in d["subnets"]}
         kinds |= {p["kind"] for p in d["places"]}
         stack = [d["reward_tree"]]
@@ -215,7 +238,7 @@ def test_the_extra_specs_cover_every_role_and_op(validator) -> None:
             node = stack.pop()
             ops.add(node["op"])
             stack.extend(node.get("args", []))
-            stack.extend(node[k] for k in ("gate", "expr", "arg") if k in node)
+            stack.extend(node[k] for k in ("gate", "expr", "arg", "flat") if k in node)
     schema = validator.schema
     assert roles == set(schema["properties"]["subnets"]["items"]["properties"]["role"]["enum"])
     assert kinds == set(schema["properties"]["places"]["items"]["properties"]["kind"]["enum"])

@@ -29,7 +29,13 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
 @plant_file_option
 @handle_errors
 def compile_cmd(
-    spec: str, fmt: str, output: str | None, conjunction: str | None, violations: str | None, clock: str | None
+    spec: str,
+    fmt: str,
+    output: str | None,
+    conjunction: str | None,
+    violations: str | None,
+    clock: str | None,
+    reward: str | None,
 ) -> None:
     """Compile SPEC (.mitl) into a reward Petri net and reward expression.
 
@@ -42,7 +48,8 @@ def compile_cmd(
     s = load_spec(spec)
     for w in s.warnings:
         click.echo(w, err=True)
-    rs = compile_spec(s, CompileOptions.from_spec(s, conjunction=conjunction, violations=violations, clock=clock))
+    options = CompileOptions.from_spec(s, conjunction=conjunction, violations=violations, clock=clock, reward=reward)
+    rs = compile_spec(s, options)
     for w in rs.warnings:
         click.echo(w, err=True)
     from mitlc.petri.render import render_bytes, to_digraph

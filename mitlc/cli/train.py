@@ -143,6 +143,7 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
         "conjunction": agent.rs.options.conjunction,
         "violations": agent.rs.options.violations,
         "clock": agent.rs.options.clock,
+        "reward": agent.rs.options.reward,
         "runs": agent.runs,
         "trials": agent.trial,
         "seed": agent.seed,
@@ -264,6 +265,7 @@ def train(
     conjunction,
     violations,
     clock,
+    reward,
     penalty_ramp,
     sigma,
     mask,
@@ -289,6 +291,7 @@ def train(
         conjunction = conjunction or meta.get("conjunction")
         violations = violations or meta.get("violations")
         clock = clock or meta.get("clock")
+        reward = reward or meta.get("reward")
         base = SacpnSettings.from_dict(meta["settings"])
         out = Path(out_dir or resume_dir)
     else:
@@ -328,7 +331,8 @@ def train(
         assignments,
         {"sigma": sigma, "mask": mask, "saturation": saturation, "penalty_ramp": penalty_ramp},
     )
-    rs = compile_spec(spec, CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations, clock=clock))
+    options = CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward)
+    rs = compile_spec(spec, options)
     for w in rs.warnings:
         click.echo(w, err=True)
     agent = Sacpn(rs, settings, runs=runs, seed=seed)

@@ -424,6 +424,8 @@ def unsupported(agent: Any) -> str | None:
     rt = agent.runtime
     if rt.timed:
         return "the net has timed obligations (nested intervals)"
+    if rt.graded:
+        return "the reward is graded (reward = shaped): it reads the state, not only the marking"
     if rt.tables is None or rt.tables.reward is None:
         return "the net's rewards are not tabulated"
     if any(w is not None for w in agent.features.warps):

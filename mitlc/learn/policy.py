@@ -125,7 +125,11 @@ def load_sacpn(ckpt: str | Path, meta: dict[str, Any], spec: Spec | None = None)
     if spec is None:
         spec = parse_spec(meta["spec_source"], meta.get("spec_path") or None)
     options = CompileOptions.from_spec(
-        spec, conjunction=meta.get("conjunction"), violations=meta.get("violations"), clock=meta.get("clock")
+        spec,
+        conjunction=meta.get("conjunction"),
+        violations=meta.get("violations"),
+        clock=meta.get("clock"),
+        reward=meta.get("reward"),
     )
     try:
         settings = SacpnSettings.from_dict(meta["settings"])

@@ -80,6 +80,7 @@ from typing import Any
 
 import numpy as np
 
+from mitlc.petri import reward as R
 from mitlc.petri.compile import RewardSystem
 from mitlc.petri.net import Net, eval_state
 from mitlc.petri.timed import TimedState
@@ -196,6 +197,8 @@ class NetRuntime:
             state_names = plant.state_names
         self.state_names = tuple(state_names)
         self.atoms: tuple[str, ...] = rs.atoms
+        self.graded = rs.grader is not None
+        """Whether the reward reads the new state too (``reward = shaped``): then no reward table."""
         self._preds = tuple(rs.spec.prop(a).pred for a in self.atoms)
         self._columns = {name: i for i, name in enumerate(self.state_names)}
         for pred in self._preds:
@@ -596,9 +599,20 @@ class NetRuntime:
             M_next[:, self.counters] = M[:, self.counters] + self.tables.counter_inc[code, code_next]
         return M_next
 
-    def reward(self, M_prev: np.ndarray, M_next: np.ndarray) -> np.ndarray:
-        """``r(M_k, M_k+1)`` for every run, ``(R,)`` floats."""
-        return np.asarray(self.rs.reward.evaluate(np.asarray(M_prev), np.asarray(M_next)), dtype=float)
+    def reward(self, M_prev: np.ndarray, M_next: np.ndarray, x_next: np.ndarray | None = None) -> np.ndarray:
+        """``r(M_k, M_k+1)`` for every run, ``(R,)`` floats; a graded reward (``reward = shaped``) also
+        reads the new states ``x_next`` ``(R, n)``."""
+        grades = self.grades(x_next) if self.graded else None
+        return np.asarray(self.rs.reward.evaluate(np.asarray(M_prev), np.asarray(M_next), grades), dtype=float)
+
+    def grades(self, x: np.ndarray | None) -> np.ndarray:
+        """The propositions' grades ``(R, atoms)`` at states ``x`` ``(R, n)`` (``reward = shaped``)."""
+        if self.rs.grader is None:
+            raise ValueError("the reward has no graded propositions (reward = net)")
+        if x is None:
+            raise ValueError("a graded reward (reward = shaped) needs the new states x_next")
+        x = np.asarray(x, dtype=float)
+        return self.rs.grader.grades({name: x[:, i] for name, i in self._columns.items()})
 
     # ------------------------------------------------------------ fast path on codes
     def reset_code(self, x0: np.ndarray) -> np.ndarray:
@@ -657,12 +671,12 @@ class NetRuntime:
             M[:, 1:, self.counters] = np.cumsum(inc, axis=1)
         return M
 
-    def reward_code(self, code_prev: np.ndarray, code_next: np.ndarray) -> np.ndarray:
-        """:meth:`reward` on marking codes."""
+    def reward_code(self, code_prev: np.ndarray, code_next: np.ndarray, x_next: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`reward` on marking codes (a graded reward reads ``x_next`` too)."""
         if self.tables is None or self.tables.reward is None:
             shape = np.shape(code_prev)
             prev, nxt = np.ravel(code_prev), np.ravel(code_next)
-            return self.reward(self.decode(prev), self.decode(nxt)).reshape(shape)
+            return self.reward(self.decode(prev), self.decode(nxt), x_next).reshape(shape)
         return self.tables.reward[code_prev, code_next]
 
     def charge_code(self, code_prev: np.ndarray, code_next: np.ndarray) -> np.ndarray:
@@ -717,7 +731,11 @@ class NetRuntime:
         now = np.tile(markings, (n_codes, 1))
         if self.counters.size:
             now[:, self.counters] = counter_inc.reshape(n_codes * n_codes, -1)
-        exprs = [self.rs.reward] + ([self.rs.charge] if self.rs.charge is not None else [])
+        # a graded reward reads the state too: no table of it (the charge reads markings only)
+        if self.graded:
+            exprs = [self.rs.charge if self.rs.charge is not None else R.ZERO]
+        else:
+            exprs = [self.rs.reward] + ([self.rs.charge] if self.rs.charge is not None else [])
         tabs = [np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes) for e in exprs]
         if self.counters.size:  # the table assumes the reward sees counters only through p - ~p
             prev[:, self.counters] += 7
@@ -725,10 +743,13 @@ class NetRuntime:
             for e, tab in zip(exprs, tabs, strict=True):
                 if not np.array_equal(np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes), tab):
                     return None
-        reward = tabs[0]
-        charge = tabs[1] if len(tabs) > 1 else np.zeros_like(reward)
+        reward: np.ndarray | None = tabs[0]
+        charge = tabs[1] if len(tabs) > 1 else np.zeros_like(tabs[0])
+        if self.graded:
+            reward, charge = None, tabs[0]
         for a in (next_code, reward, charge, marked, counter_inc):
-            a.setflags(write=False)
+            if a is not None:
+                a.setflags(write=False)
         return _Tables(next_code, reward, charge, marked, counter_inc)
 
     def _build_compact(self) -> _Tables | None:
@@ -831,7 +852,8 @@ class NetRuntime:
         if n_codes * n_codes <= MAX_TABLE // 16:  # evaluating every pair of a large net costs more than it saves
             prev = np.repeat(markings, n_codes, axis=0).astype(np.int64)
             now = np.tile(markings, (n_codes, 1)).astype(np.int64)
-            reward = np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
+            if not self.graded:
+                reward = np.asarray(self.rs.reward.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
             charge = (
                 np.asarray(self.rs.charge.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes)
                 if self.rs.charge is not None

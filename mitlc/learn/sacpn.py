@@ -678,7 +678,7 @@ class Sacpn:
                         r = reward_tab[code, code1]
                         ret += r if s_pen >= 1.0 else reward_full[code, code1]
                     else:
-                        r = reward_code(code, code1)
+                        r = reward_code(code, code1, x)
                         ret += r
                         if s_pen < 1.0:
                             r = r + ramp * charge_code(code, code1)
@@ -760,7 +760,7 @@ class Sacpn:
                 u = np.clip(u + noise, -self.u_max, self.u_max)
             self.integrate(x, u)
             code1 = rt.step_code(code, x, (k + 1) * self.dt)
-            rewards[:, k] = rt.reward_code(code, code1)
+            rewards[:, k] = rt.reward_code(code, code1, x)
             code = code1
             states[:, k + 1], codes[:, k + 1], actions[:, k] = x, code, u
         return Rollout(states, actions, codes, rewards, self.dt)
@@ -786,6 +786,7 @@ class Sacpn:
             "conjunction": self.rs.options.conjunction,
             "violations": self.rs.options.violations,
             "clock": self.rs.options.clock,
+            "reward": self.rs.options.reward,
             "diverged": self.diverged.tolist(),
         }
         return {
@@ -802,6 +803,10 @@ class Sacpn:
             raise InputError(f"checkpoint holds {meta['runs']} runs of shape {tuple(d['xi'].shape)}, expected {shape}")
         if meta["places"] != list(self.rs.net.place_names):
             raise InputError("checkpoint was trained on a different reward net")
+        if meta.get("reward", "net") != self.rs.options.reward:
+            raise InputError(
+                f"checkpoint was trained with reward {meta.get('reward', 'net')}, not {self.rs.options.reward}"
+            )
         self.xi = np.array(d["xi"], dtype=float)
         self.theta = np.array(d["theta"], dtype=float)
         self.returns = np.array(d["returns"], dtype=float).reshape(self.runs, -1)

@@ -37,6 +37,7 @@ import numpy as np
 
 from mitlc.errors import CompileError
 from mitlc.petri import reward as R
+from mitlc.petri.grades import Grader
 from mitlc.petri.net import Guard, GuardTerm, Incidence, Net, Place, SubNet, Transition
 from mitlc.petri.parts import Arc, Part, tokens
 from mitlc.petri.reading import (
@@ -90,9 +91,14 @@ class CompileOptions:
     obligation starts (MITL; timed obligation sub-nets, :mod:`mitlc.petri.timed`).
     ``trial``: every interval on the trial clock, the thesis's reading (net C-5)."""
 
+    reward: str = "net"
+    """``net``: Table 4-2's reward, each proposition a flat +1 / -1 (``p_a - p_not_a``).
+    ``shaped``: each proposition's graded value instead, its robustness normalised by the
+    state bounds and clipped to [-1, 1] (:mod:`mitlc.petri.grades`; docs/semantics.md)."""
+
     @staticmethod
     def from_spec(spec: Spec, **overrides: str | None) -> CompileOptions:
-        values = {name: spec.option(name) for name in ("conjunction", "violations", "clock")}
+        values = {name: spec.option(name) for name in ("conjunction", "violations", "clock", "reward")}
         values.update({k: v for k, v in overrides.items() if v is not None})
         return CompileOptions(**values)
 
@@ -117,6 +123,9 @@ class RewardSystem:
     """The timed obligation trees (``clock = standard`` with nested intervals) and their sub-nets."""
     warnings: tuple[str, ...] = ()
     """What the compiler noticed (a part that no trial of the horizon can satisfy)."""
+    grader: Grader | None = None
+    """``reward = shaped``: the propositions' grades (:mod:`mitlc.petri.grades`), in :attr:`atoms`
+    order, which the reward reads at the new state; None when the reward reads markings only."""
 
     @property
     def atoms(self) -> tuple[str, ...]:
@@ -233,12 +242,12 @@ class _Builder(ViolationWatches):
             return R.Const(1.0 if f.value else -1.0)
         if isinstance(f, A.Atom):
             pos, neg = self.where[f.name]
-            return R.Sum((tokens(pos), R.Neg(tokens(neg))))
+            return self._graded(f.name, R.Sum((tokens(pos), R.Neg(tokens(neg)))), False)
         if isinstance(f, A.Not):
             if not isinstance(f.child, A.Atom):
                 raise CompileError(f"negation of {f.child} left after normal form")
             pos, neg = self.where[f.child.name]
-            return R.Sum((tokens(neg), R.Neg(tokens(pos))))
+            return self._graded(f.child.name, R.Sum((tokens(neg), R.Neg(tokens(pos)))), True)
         if isinstance(f, A.Weighted):
             inner = self.reward(f.child, ctx, under_g, conj)
             if isinstance(inner, R.Gated):
@@ -255,6 +264,13 @@ class _Builder(ViolationWatches):
         if isinstance(f, A.Until):
             return self._until(f, ctx, under_g, conj)
         raise CompileError(f"cannot compile {type(f).__name__}")
+
+    def _graded(self, atom: str, flat: R.RExpr, negated: bool) -> R.RExpr:
+        """A proposition's reward: ``flat`` (+1 / -1), or with ``reward = shaped`` its grade."""
+        if self.options.reward != "shaped":
+            return flat
+        atoms = [a for g in self.groups for a in g]
+        return R.Graded(atom, atoms.index(atom), flat, negated)
 
     def _bonus(self, f: A.Formula, ctx: frozenset[int]) -> R.RExpr:
         """The reward of ``G f`` without its window: ``(1 + ~h_f) r_f`` for state formulas."""
@@ -638,6 +654,8 @@ def _resolve(e: R.RExpr, index: dict[str, int]) -> R.RExpr:
         return R.Gated(_resolve(e.gate, index), _resolve(e.expr, index))
     if isinstance(e, R.Neg):
         return R.Neg(_resolve(e.arg, index))
+    if isinstance(e, R.Graded):
+        return dataclasses.replace(e, flat=_resolve(e.flat, index))
     field_name = {R.Sum: "terms", R.Prod: "factors", R.Min: "terms", R.Max: "terms"}[type(e)]
     children = tuple(_resolve(c, index) for c in e.children)
     return dataclasses.replace(e, **{field_name: children})  # type: ignore[type-var]  # e is Sum/Prod/Min/Max here
@@ -662,6 +680,8 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
         )
     if options.clock not in OPTIONS["clock"]:
         raise CompileError(f"unknown clock reading '{options.clock}' (standard or trial)")
+    if options.reward not in OPTIONS["reward"]:
+        raise CompileError(f"unknown reward '{options.reward}' ({' or '.join(OPTIONS['reward'])})")
     nf = normal_form(spec.formula)
     roots: list[A.Formula] = []
     formula = _split_reading(nf, options.clock == "standard", roots)
@@ -696,7 +716,10 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
         TimedNet(tree, tuple((i, next(k for k, s in enumerate(subs) if s is part)) for i, part in parts))
         for tree, parts in builder.obligations
     )
-    return RewardSystem(spec, nf, net, resolved, builder.groups, options, penalty, charge, timed, tuple(warnings))
+    grader = Grader.of(spec, [a for g in builder.groups for a in g]) if R.is_graded(resolved) else None
+    return RewardSystem(
+        spec, nf, net, resolved, builder.groups, options, penalty, charge, timed, tuple(warnings), grader
+    )
 
 
 def _steps(spec: Spec) -> int:

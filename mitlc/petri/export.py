@@ -42,6 +42,8 @@ def reward_tree(e: R.RExpr) -> dict[str, Any]:
         return {"op": "gated", "gate": reward_tree(e.gate), "expr": reward_tree(e.expr)}
     if isinstance(e, R.Neg):
         return {"op": "neg", "arg": reward_tree(e.arg)}
+    if isinstance(e, R.Graded):
+        return {"op": "graded", "atom": e.atom, "negated": e.negated, "flat": reward_tree(e.flat)}
     if isinstance(e, R.Min):
         return {"op": "min_active" if e.active else "min", "args": [reward_tree(c) for c in e.children]}
     name = {R.Sum: "sum", R.Prod: "prod", R.Max: "max"}[type(e)]
@@ -59,6 +61,7 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
             "conjunction": rs.options.conjunction,
             "violations": rs.options.violations,
             "clock": rs.options.clock,
+            "reward": rs.options.reward,
         },
         "penalty": rs.penalty,
         "places": [{"name": p.name, "kind": p.kind, "subnet": p.subnet, "label": p.label} for p in net.places],

@@ -23,7 +23,24 @@ import numpy as np
 
 from mitlc.spec.ast import fmt_number
 
-__all__ = ["bounds", "scale", "RExpr", "Const", "Tokens", "Sum", "Prod", "Neg", "Min", "Max", "Gated", "ONE", "ZERO"]
+__all__ = [
+    "bounds",
+    "pair_bounds",
+    "is_graded",
+    "scale",
+    "RExpr",
+    "Const",
+    "Tokens",
+    "Graded",
+    "Sum",
+    "Prod",
+    "Neg",
+    "Min",
+    "Max",
+    "Gated",
+    "ONE",
+    "ZERO",
+]
 
 
 class RExpr:
@@ -32,8 +49,9 @@ class RExpr:
     __slots__ = ()
     prec = 9
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
-        """Reward for each row: ``prev`` and ``now`` are ``(R, places)`` markings."""
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        """Reward for each row: ``prev`` and ``now`` are ``(R, places)`` markings; ``grades``
+        ``(R, atoms)`` the graded propositions at the new state (:class:`Graded`), where there are any."""
         raise NotImplementedError
 
     @property
@@ -54,7 +72,7 @@ class Const(RExpr):
     value: float
     prec = _ATOM
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
         return np.full(prev.shape[0], self.value)
 
     def __str__(self) -> str:
@@ -77,7 +95,7 @@ class Tokens(RExpr):
     def previous(self) -> Tokens:
         return Tokens(self.places, self.names, True)
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
         m = prev if self.prev else now
         if len(self.places) == 1:
             return m[:, self.places[0]].astype(float)
@@ -91,6 +109,38 @@ class Tokens(RExpr):
 
 
 @dataclass(frozen=True, slots=True)
+class Graded(RExpr):
+    """An atomic proposition's graded value at the new state (``reward = shaped``): in place of its
+    flat reward ``p_a - p_not_a`` (+1 where ``a`` holds, -1 where not), the predicate's robustness
+    normalised by the state bounds and clipped to ``[-1, 1]`` (:mod:`mitlc.petri.grades`), read
+    from column ``index`` of the ``grades`` that :meth:`evaluate` is given; ``negated`` for ``!a``.
+
+    Its sign is the sign of ``flat`` (a proposition that holds has robustness >= 0), so on a step
+    whose markings say ``a`` holds it lies in ``[0, 1]`` and where not in ``[-1, 0]``:
+    :func:`pair_bounds` uses that.
+    """
+
+    atom: str
+    index: int
+    flat: RExpr
+    negated: bool = False
+    prec = _ATOM
+
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        if grades is None:
+            raise ValueError(f"the graded reward of '{self.atom}' needs the grades of the new state")
+        g = np.asarray(grades[:, self.index], dtype=float)
+        return -g if self.negated else g
+
+    @property
+    def children(self) -> tuple[RExpr, ...]:
+        return (self.flat,)
+
+    def __str__(self) -> str:
+        return f"{'-' if self.negated else ''}g_{self.atom}"
+
+
+@dataclass(frozen=True, slots=True)
 class Sum(RExpr):
     terms: tuple[RExpr, ...]
     prec = _SUM
@@ -99,10 +149,10 @@ class Sum(RExpr):
     def children(self) -> tuple[RExpr, ...]:
         return self.terms
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
-        out = self.terms[0].evaluate(prev, now)
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        out = self.terms[0].evaluate(prev, now, grades)
         for t in self.terms[1:]:
-            out = out + t.evaluate(prev, now)
+            out = out + t.evaluate(prev, now, grades)
         return out
 
     def __str__(self) -> str:
@@ -124,10 +174,10 @@ class Prod(RExpr):
     def children(self) -> tuple[RExpr, ...]:
         return self.factors
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
-        out = self.factors[0].evaluate(prev, now)
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        out = self.factors[0].evaluate(prev, now, grades)
         for f in self.factors[1:]:
-            out = out * f.evaluate(prev, now)
+            out = out * f.evaluate(prev, now, grades)
         return out
 
     def __str__(self) -> str:
@@ -143,8 +193,8 @@ class Neg(RExpr):
     def children(self) -> tuple[RExpr, ...]:
         return (self.arg,)
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
-        return -self.arg.evaluate(prev, now)
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        return -self.arg.evaluate(prev, now, grades)
 
     def __str__(self) -> str:
         return "-" + _wrap(self.arg, _NEG + 1)
@@ -166,8 +216,8 @@ class Gated(RExpr):
     def children(self) -> tuple[RExpr, ...]:
         return (self.gate, self.expr)
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
-        return self.gate.evaluate(prev, now) * self.expr.evaluate(prev, now)
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        return self.gate.evaluate(prev, now, grades) * self.expr.evaluate(prev, now, grades)
 
     def __str__(self) -> str:
         return f"{_wrap(self.gate, _PROD + 1)} * {_wrap(self.expr, _PROD + 1)}"
@@ -191,13 +241,13 @@ class Min(RExpr):
     def children(self) -> tuple[RExpr, ...]:
         return self.terms
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
-        values = np.stack([t.evaluate(prev, now) for t in self.terms])
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        values = np.stack([t.evaluate(prev, now, grades) for t in self.terms])
         if not self.active:
             return values.min(axis=0)
         open_ = np.stack(
             [
-                t.gate.evaluate(prev, now) > 0 if isinstance(t, Gated) else np.ones(prev.shape[0], bool)
+                t.gate.evaluate(prev, now, grades) > 0 if isinstance(t, Gated) else np.ones(prev.shape[0], bool)
                 for t in self.terms
             ]
         )
@@ -220,8 +270,8 @@ class Max(RExpr):
     def children(self) -> tuple[RExpr, ...]:
         return self.terms
 
-    def evaluate(self, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
-        return np.stack([t.evaluate(prev, now) for t in self.terms]).max(axis=0)
+    def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
+        return np.stack([t.evaluate(prev, now, grades) for t in self.terms]).max(axis=0)
 
     def __str__(self) -> str:
         return f"max({', '.join(str(t) for t in self.terms)})"
@@ -248,6 +298,8 @@ def bounds(e: RExpr) -> tuple[float, float]:
         return e.value, e.value
     if isinstance(e, Tokens):
         return 0.0, 1.0
+    if isinstance(e, Graded):
+        return -1.0, 1.0
     if isinstance(e, Neg):
         lo, hi = bounds(e.arg)
         return -hi, -lo
@@ -270,4 +322,58 @@ def bounds(e: RExpr) -> tuple[float, float]:
     if isinstance(e, Max):
         pairs = [bounds(t) for t in e.terms]
         return max(p[0] for p in pairs), max(p[1] for p in pairs)
+    raise TypeError(f"not a reward expression: {e!r}")
+
+
+def is_graded(e: RExpr) -> bool:
+    """Whether ``e`` reads graded propositions (then it needs the new state, not only markings)."""
+    return isinstance(e, Graded) or any(is_graded(c) for c in e.children)
+
+
+def pair_bounds(e: RExpr, prev: np.ndarray, now: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of ``e`` on each marking pair over every state the pair allows: exact values where
+    ``e`` reads only tokens, and for a :class:`Graded` leaf the hull of 0 and its flat value
+    (interval arithmetic over the tree, so the bounds are sound, if not always tight).
+
+    >>> a, na = Tokens((0,), ("p_a",)), Tokens((1,), ("p_not_a",))
+    >>> g = Graded("a", 0, Sum((a, Neg(na))))
+    >>> lo, hi = pair_bounds(Prod((Const(2.0), g)), np.array([[1, 0], [1, 0]]), np.array([[1, 0], [0, 1]]))
+    >>> lo.tolist(), hi.tolist()
+    ([0.0, -2.0], [2.0, 0.0])
+    """
+    if not is_graded(e):
+        v = np.asarray(e.evaluate(prev, now), dtype=float)
+        v = np.broadcast_to(v, (prev.shape[0],))
+        return v, v
+    if isinstance(e, Graded):
+        f = np.asarray(e.flat.evaluate(prev, now), dtype=float)
+        return np.minimum(f, 0.0), np.maximum(f, 0.0)
+    if isinstance(e, Neg):
+        lo, hi = pair_bounds(e.arg, prev, now)
+        return -hi, -lo
+    if isinstance(e, Sum):
+        parts = [pair_bounds(t, prev, now) for t in e.terms]
+        return sum(p[0] for p in parts), sum(p[1] for p in parts)  # type: ignore[return-value]
+    if isinstance(e, (Prod, Gated)):
+        lo, hi = pair_bounds(e.children[0], prev, now)
+        for factor in e.children[1:]:
+            flo, fhi = pair_bounds(factor, prev, now)
+            corners = np.stack([lo * flo, lo * fhi, hi * flo, hi * fhi])
+            lo, hi = corners.min(axis=0), corners.max(axis=0)
+        return lo, hi
+    if isinstance(e, Min):
+        parts = [pair_bounds(t, prev, now) for t in e.terms]
+        los, his = np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts])
+        if not e.active:
+            return los.min(axis=0), his.min(axis=0)
+        open_ = np.stack(
+            [t.gate.evaluate(prev, now) > 0 if isinstance(t, Gated) else np.ones(prev.shape[0], bool) for t in e.terms]
+        )
+        any_open = open_.any(axis=0)
+        lo = np.where(any_open, np.where(open_, los, np.inf).min(axis=0), 0.0)
+        hi = np.where(any_open, np.where(open_, his, np.inf).min(axis=0), 0.0)
+        return lo, hi
+    if isinstance(e, Max):
+        parts = [pair_bounds(t, prev, now) for t in e.terms]
+        return np.stack([p[0] for p in parts]).max(axis=0), np.stack([p[1] for p in parts]).max(axis=0)
     raise TypeError(f"not a reward expression: {e!r}")

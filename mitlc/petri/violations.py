@@ -153,8 +153,8 @@ def bounds_all_steps(net: Net, reward: R.RExpr) -> tuple[float, float]:
     pairs = _pairs(net)
     if pairs is None:
         return R.bounds(reward)
-    values = reward.evaluate(*pairs)
-    return float(values.min()), float(values.max())
+    lo, hi = R.pair_bounds(reward, *pairs)  # graded propositions: over every state the pair allows
+    return float(lo.min()), float(hi.max())
 
 
 def _contains(outer: A.Interval, inner: A.Interval) -> bool:
@@ -206,5 +206,5 @@ def bounds_without_violation(builder: ViolationWatches, net: Net, reward: R.RExp
         keep &= now[:, ok] > 0
     if not keep.any():
         return R.bounds(reward)
-    values = reward.evaluate(prev[keep], now[keep])
-    return float(values.min()), float(values.max())
+    lo, hi = R.pair_bounds(reward, prev[keep], now[keep])
+    return float(lo.min()), float(hi.max())
