@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -127,3 +128,66 @@ def test_printing_parenthesises_by_precedence():
     }
     for e, text in cases.items():
         assert str(e) == text
+
+
+# graded propositions: a over places {0: p_a, 1: p_not_a}, b over {2: p_b, 3: p_not_b}
+GA = R.Graded("a", 0, R.Sum((R.Tokens((0,), ("p_a",)), R.Neg(R.Tokens((1,), ("p_not_a",))))))
+GNB = R.Graded("b", 1, R.Sum((R.Tokens((3,), ("p_not_b",)), R.Neg(R.Tokens((2,), ("p_b",))))), negated=True)
+SA = R.Graded("a", 0, GA.flat, mix=0.5)  # reward = shaped: half the flat value, half the grade
+_G_LEAVES = st.sampled_from(
+    [GA, GNB, SA, R.Tokens((0,), ("p_a",)), R.Tokens((2,), ("p_b",), True), R.ONE, R.Const(-2.0), R.Const(0.5)]
+)
+
+
+def _g_extend(children: st.SearchStrategy[R.RExpr]) -> st.SearchStrategy[R.RExpr]:
+    pair = st.lists(children, min_size=2, max_size=3).map(tuple)
+    gates = st.sampled_from([R.Tokens((0,), ("p_a",)), R.Tokens((2,), ("p_b",), True)])
+    return st.one_of(
+        children.map(R.Neg),
+        pair.map(R.Sum),
+        pair.map(R.Prod),
+        pair.map(R.Min),
+        pair.map(lambda t: R.Min(t, active=True)),
+        pair.map(R.Max),
+        st.builds(R.Gated, gates, children),
+    )
+
+
+_G_EXPRS = st.recursive(_G_LEAVES, _g_extend, max_leaves=6)
+# every marking pair of two two-place region nets, each with grades whose signs agree with it
+_REGION = np.array([[1, 0, 1, 0], [1, 0, 0, 1], [0, 1, 1, 0], [0, 1, 0, 1]], dtype=np.int64)
+G_PREV, G_NOW = np.repeat(_REGION, 4, axis=0), np.tile(_REGION, (4, 1))
+
+
+@settings(max_examples=300, deadline=None)
+@given(_G_EXPRS, st.lists(st.floats(0.0, 1.0), min_size=2 * len(G_NOW), max_size=2 * len(G_NOW)))
+def test_pair_bounds_hold_for_every_grade_the_marking_allows(e, sizes):
+    """reward.pair_bounds (what the violation penalty is sized from) holds every value a graded
+    reward takes: grades in [0, 1] where the marking says the proposition holds, [-1, 0] where not;
+    without graded leaves the bounds are the value itself."""
+    lo, hi = R.pair_bounds(e, G_PREV, G_NOW)
+    holds = np.stack([G_NOW[:, 0] == 1, G_NOW[:, 2] == 1], axis=1)
+    size = np.array(sizes).reshape(len(G_NOW), 2)
+    for grades in (np.where(holds, size, -size), np.where(holds, 1.0, -1.0), np.where(holds, 0.0, -0.0)):
+        v = e.evaluate(G_PREV, G_NOW, grades)
+        assert np.all(lo - 1e-12 <= v) and np.all(v <= hi + 1e-12), str(e)
+    if not R.is_graded(e):
+        np.testing.assert_array_equal(lo, e.evaluate(G_PREV, G_NOW))
+        np.testing.assert_array_equal(hi, e.evaluate(G_PREV, G_NOW))
+    lo_all, hi_all = R.bounds(e)  # the interval bounds over everything hold them too
+    assert lo_all - 1e-12 <= lo.min() and hi.max() <= hi_all + 1e-12
+
+
+def test_graded_leaves_by_hand():
+    prev = now = np.array([[1, 0, 1, 0], [0, 1, 1, 0]])
+    grades = np.array([[0.25, 0.5], [-0.75, 0.5]])
+    assert GA.evaluate(prev, now, grades).tolist() == [0.25, -0.75]
+    assert GNB.evaluate(prev, now, grades).tolist() == [-0.5, -0.5]
+    assert str(GA) == "g_a" and str(GNB) == "-g_b" and R.is_graded(R.Sum((A, GA))) and not R.is_graded(A)
+    assert SA.evaluate(prev, now, grades).tolist() == [0.625, -0.875] and str(SA) == "s_a"
+    lo, hi = R.pair_bounds(SA, prev, now)
+    assert lo.tolist() == [0.5, -1.0] and hi.tolist() == [1.0, -0.5]
+    lo, hi = R.pair_bounds(R.Prod((R.Const(3.0), GA, GNB)), prev, now)  # a true / false, b true
+    assert lo.tolist() == [-3.0, 0.0] and hi.tolist() == [0.0, 3.0]
+    with pytest.raises(ValueError, match="needs the grades"):
+        GA.evaluate(prev, now)

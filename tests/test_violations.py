@@ -130,7 +130,7 @@ def _rewards_and_first_violation(rs, x: np.ndarray) -> tuple[np.ndarray, np.ndar
     first = np.full(len(x), STEPS)
     for k in range(STEPS):
         m_next = rt.step(m, x[:, k + 1], (k + 1) * DT)
-        rewards[:, k] = rt.reward(m, m_next)
+        rewards[:, k] = rt.reward(m, m_next, x[:, k + 1])  # the new states: read by a graded reward
         hit = (m_next[:, watched].sum(axis=1) > 0) & (first == STEPS)
         first[hit] = k
         m = m_next
@@ -182,14 +182,17 @@ ORDERING = [
 ]
 
 
+@pytest.mark.parametrize("reward", ["net", "shaped", "graded"])
 @pytest.mark.parametrize("name,formula,q0,designed", ORDERING, ids=[o[0] for o in ORDERING])
-def test_no_violating_continuation_out_earns_a_satisfying_one(name, formula, q0, designed) -> None:
+def test_no_violating_continuation_out_earns_a_satisfying_one(name, formula, q0, designed, reward) -> None:
+    """The guarantee of violations = permanent, with flat and with graded propositions."""
     spec = load_spec(ROOT / "specs" / "pendulum" / f"{name}.mitl")
     rng = np.random.default_rng(7)
     x = _traces(rng, q0, designed)
     verdict = monitor(spec, x, DT, parse_formula(formula) if formula else None).satisfied
     assert verdict.any() and (~verdict).any(), "the sample must hold both kinds of trial"
-    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations="permanent"))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations="permanent", reward=reward))
+    assert (rs.grader is not None) == (reward != "net")
     rewards, first = _rewards_and_first_violation(rs, x)
     # the net records a violation exactly when the monitor finds one
     np.testing.assert_array_equal(first < STEPS, ~verdict)

@@ -82,8 +82,9 @@ def compile_options(fn: Callable[..., Any]) -> Callable[..., Any]:
         "spec's option; docs/semantics.md section 6).",
         "clock": "standard: nested intervals count from their obligation's start (MITL); trial: every "
         "interval on the trial clock, the thesis's reading (overrides the spec's option).",
-        "reward": "net: Table 4-2's reward, each proposition +1 / -1; shaped: each proposition's robustness over "
-        "the state bounds, clipped to [-1, 1] (overrides the spec's option; docs/semantics.md).",
+        "reward": "net: Table 4-2's reward, each proposition +1 / -1; graded: each proposition's robustness over "
+        "the state bounds, clipped to [-1, 1]; shaped: the mean of the two (overrides the spec's option; "
+        "docs/semantics.md).",
     }
     for name in reversed(list(helps)):
         fn = click.option(f"--{name}", type=click.Choice(OPTIONS[name]), default=None, help=helps[name])(fn)

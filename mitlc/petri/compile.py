@@ -93,8 +93,9 @@ class CompileOptions:
 
     reward: str = "net"
     """``net``: Table 4-2's reward, each proposition a flat +1 / -1 (``p_a - p_not_a``).
-    ``shaped``: each proposition's graded value instead, its robustness normalised by the
-    state bounds and clipped to [-1, 1] (:mod:`mitlc.petri.grades`; docs/semantics.md)."""
+    ``graded``: each proposition's grade instead, its robustness normalised by the state bounds
+    and clipped to [-1, 1] (:mod:`mitlc.petri.grades`). ``shaped``: the mean of the two, so
+    the step at the region's boundary is kept and either side is graded (docs/semantics.md)."""
 
     @staticmethod
     def from_spec(spec: Spec, **overrides: str | None) -> CompileOptions:
@@ -266,11 +267,11 @@ class _Builder(ViolationWatches):
         raise CompileError(f"cannot compile {type(f).__name__}")
 
     def _graded(self, atom: str, flat: R.RExpr, negated: bool) -> R.RExpr:
-        """A proposition's reward: ``flat`` (+1 / -1), or with ``reward = shaped`` its grade."""
-        if self.options.reward != "shaped":
+        """A proposition's reward: ``flat`` (+1 / -1), or its grade (``graded``), or their mean (``shaped``)."""
+        if self.options.reward == "net":
             return flat
         atoms = [a for g in self.groups for a in g]
-        return R.Graded(atom, atoms.index(atom), flat, negated)
+        return R.Graded(atom, atoms.index(atom), flat, negated, 0.5 if self.options.reward == "shaped" else 0.0)
 
     def _bonus(self, f: A.Formula, ctx: frozenset[int]) -> R.RExpr:
         """The reward of ``G f`` without its window: ``(1 + ~h_f) r_f`` for state formulas."""

@@ -43,7 +43,7 @@ def reward_tree(e: R.RExpr) -> dict[str, Any]:
     if isinstance(e, R.Neg):
         return {"op": "neg", "arg": reward_tree(e.arg)}
     if isinstance(e, R.Graded):
-        return {"op": "graded", "atom": e.atom, "negated": e.negated, "flat": reward_tree(e.flat)}
+        return {"op": "graded", "atom": e.atom, "negated": e.negated, "mix": e.mix, "flat": reward_tree(e.flat)}
     if isinstance(e, R.Min):
         return {"op": "min_active" if e.active else "min", "args": [reward_tree(c) for c in e.children]}
     name = {R.Sum: "sum", R.Prod: "prod", R.Max: "max"}[type(e)]

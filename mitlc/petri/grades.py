@@ -1,8 +1,9 @@
-"""Graded propositions for ``reward = shaped``: how near a state is to making a proposition hold.
+"""Graded propositions (``reward = graded`` or ``shaped``): how near a state is to making a proposition hold.
 
 The flat reward of an atomic proposition ``a`` is ``p_a - p_not_a``: +1 where it holds, -1 where
-not, with no sense of how near the boundary the state is. With ``option reward = shaped`` the
-compiler puts the proposition's *grade* there instead (:class:`mitlc.petri.reward.Graded`):
+not, with no sense of how near the boundary the state is. With ``option reward = graded`` the
+compiler puts the proposition's *grade* there instead, with ``shaped`` the mean of the flat value
+and the grade (:class:`mitlc.petri.reward.Graded`):
 
 * each comparison ``e1 < e2`` (and ``<=``, ``>``, ``>=``, ``==``, ``!=``) has the margin the
   monitor uses for its robustness (``e2 - e1``, ``-|e1 - e2|`` for ``==``, ...), divided by the

@@ -110,13 +110,16 @@ class Tokens(RExpr):
 
 @dataclass(frozen=True, slots=True)
 class Graded(RExpr):
-    """An atomic proposition's graded value at the new state (``reward = shaped``): in place of its
-    flat reward ``p_a - p_not_a`` (+1 where ``a`` holds, -1 where not), the predicate's robustness
-    normalised by the state bounds and clipped to ``[-1, 1]`` (:mod:`mitlc.petri.grades`), read
-    from column ``index`` of the ``grades`` that :meth:`evaluate` is given; ``negated`` for ``!a``.
+    """An atomic proposition's graded value at the new state, in place of its flat reward
+    ``flat = p_a - p_not_a`` (+1 where ``a`` holds, -1 where not): ``mix * flat + (1 - mix) * g_a``,
+    with ``g_a`` the predicate's robustness normalised by the state bounds and clipped to ``[-1, 1]``
+    (:mod:`mitlc.petri.grades`), read from column ``index`` of the ``grades`` that :meth:`evaluate`
+    is given (negated for ``!a``). ``reward = graded`` is ``mix = 0`` (printed ``g_a``),
+    ``reward = shaped`` is ``mix = 1/2`` (printed ``s_a``: the flat step at the boundary kept, half
+    of it, and graded on either side).
 
-    Its sign is the sign of ``flat`` (a proposition that holds has robustness >= 0), so on a step
-    whose markings say ``a`` holds it lies in ``[0, 1]`` and where not in ``[-1, 0]``:
+    ``g_a`` has the sign of ``flat`` (a proposition that holds has robustness >= 0), so on a step
+    whose markings say ``a`` holds the value lies in ``[mix, 1]`` and where not in ``[-1, -mix]``:
     :func:`pair_bounds` uses that.
     """
 
@@ -124,20 +127,24 @@ class Graded(RExpr):
     index: int
     flat: RExpr
     negated: bool = False
+    mix: float = 0.0
     prec = _ATOM
 
     def evaluate(self, prev: np.ndarray, now: np.ndarray, grades: np.ndarray | None = None) -> np.ndarray:
         if grades is None:
             raise ValueError(f"the graded reward of '{self.atom}' needs the grades of the new state")
         g = np.asarray(grades[:, self.index], dtype=float)
-        return -g if self.negated else g
+        g = -g if self.negated else g
+        if self.mix:
+            return self.mix * self.flat.evaluate(prev, now) + (1.0 - self.mix) * g
+        return g
 
     @property
     def children(self) -> tuple[RExpr, ...]:
         return (self.flat,)
 
     def __str__(self) -> str:
-        return f"{'-' if self.negated else ''}g_{self.atom}"
+        return f"{'-' if self.negated else ''}{'s' if self.mix else 'g'}_{self.atom}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -332,8 +339,9 @@ def is_graded(e: RExpr) -> bool:
 
 def pair_bounds(e: RExpr, prev: np.ndarray, now: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of ``e`` on each marking pair over every state the pair allows: exact values where
-    ``e`` reads only tokens, and for a :class:`Graded` leaf the hull of 0 and its flat value
-    (interval arithmetic over the tree, so the bounds are sound, if not always tight).
+    ``e`` reads only tokens, and for a :class:`Graded` leaf the hull of ``mix`` times its flat value
+    and its flat value (interval arithmetic over the tree, so the bounds are sound, if not always
+    tight).
 
     >>> a, na = Tokens((0,), ("p_a",)), Tokens((1,), ("p_not_a",))
     >>> g = Graded("a", 0, Sum((a, Neg(na))))
@@ -347,7 +355,8 @@ def pair_bounds(e: RExpr, prev: np.ndarray, now: np.ndarray) -> tuple[np.ndarray
         return v, v
     if isinstance(e, Graded):
         f = np.asarray(e.flat.evaluate(prev, now), dtype=float)
-        return np.minimum(f, 0.0), np.maximum(f, 0.0)
+        inner = e.mix * f + 0.0  # no negative zero
+        return np.minimum(f, inner), np.maximum(f, inner)
     if isinstance(e, Neg):
         lo, hi = pair_bounds(e.arg, prev, now)
         return -hi, -lo

@@ -39,7 +39,7 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     "conjunction": ("literal", "active"),
     "violations": ("off", "permanent", "counted"),
     "clock": ("standard", "trial"),
-    "reward": ("net", "shaped"),
+    "reward": ("net", "shaped", "graded"),
 }
 """Spec options (``option NAME = VALUE``) and their allowed values; the first is the default."""
 

@@ -1,0 +1,99 @@
+"""Graded propositions (reward = shaped) against the monitor's robustness, and the graded reward by hand."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mitlc.learn.runtime import NetRuntime
+from mitlc.monitor.offline import compile_pred
+from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.petri.grades import Grader
+from mitlc.spec import predicates as P
+from mitlc.spec.parse import load_spec, parse_spec
+
+# predicates over the mass-damper's q in [-1, 1] and qdot in [-5, 5]
+_TERMS = st.one_of(
+    st.sampled_from(["q", "qdot"]).map(P.Var),
+    st.sampled_from([0.0, 0.2, -1.0, 1.5]).map(P.Num),
+)
+_ARITH = st.recursive(
+    _TERMS,
+    lambda c: st.one_of(
+        st.builds(P.BinOp, st.sampled_from(["+", "-", "*"]), c, c),
+        st.builds(lambda a: P.Call("abs", (a,)), c),
+    ),
+    max_leaves=3,
+)
+_CMP = st.builds(
+    lambda ops, terms: P.Compare(tuple(terms[: len(ops) + 1]), tuple(ops)),
+    st.lists(st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), min_size=1, max_size=2),
+    st.lists(_ARITH, min_size=3, max_size=3),
+)
+_BOOL = st.recursive(
+    _CMP, lambda c: st.one_of(c.map(P.PNot), st.builds(P.PAnd, c, c), st.builds(P.POr, c, c)), max_leaves=3
+)
+PLANT = "plant mass-damper\ninit q in [-1, -0.5], qdot = 0\nhorizon 5\n"
+
+
+def _spec(pred: P.Pred):
+    return parse_spec(f"{PLANT}prop a = {pred}\nformula F G a")
+
+
+@settings(max_examples=200, deadline=None)
+@given(_BOOL, st.lists(st.tuples(st.floats(-1.5, 1.5), st.floats(-6.0, 6.0)), min_size=1, max_size=6))
+def test_grades_are_the_monitors_robustness_scaled_and_clipped(pred, states):
+    """With every comparison's scale set to 1 a grade is the monitor's robustness clipped to [-1, 1];
+    with the box's scales its sign is still the proposition's truth (0 allowed on the boundary)."""
+    spec = _spec(pred)
+    grader = Grader.of(spec, ("a",))
+    env = {"q": np.array([s[0] for s in states]), "qdot": np.array([s[1] for s in states])}
+    truth, rob = compile_pred(spec.prop("a").pred)(env, (1, len(states)))
+    unit = dataclasses.replace(grader, scales=tuple(tuple(1.0 for _ in row) for row in grader.scales))
+    np.testing.assert_array_equal(unit.grades(env)[:, 0], np.clip(rob[0], -1.0, 1.0))
+    g = grader.grades(env)[:, 0]
+    assert np.all(np.abs(g) <= 1.0)
+    assert np.all(g[truth[0]] >= 0.0) and np.all(g[~truth[0]] <= 0.0)
+    assert all(s > 0 and math.isfinite(s) for row in grader.scales for s in row)
+
+
+def test_small_goal_grades_by_hand():
+    pred = parse_spec(f"{PLANT}prop t = abs(q - 0.5) < 0.2 and abs(qdot) < 0.3\nformula F t").prop("t").pred
+    g = Grader.of(_spec(pred), ("a",))
+    # 0.2 - |q - 0.5| over q in [-1, 1] is largest in size at q = -1 (-1.3); 0.3 - |qdot|, at qdot = +-5 (-4.7)
+    assert g.scales == ((1.3, 4.7),)
+    got = g.grades({"q": np.array([0.5, 0.0, 0.6, -1.0]), "qdot": np.array([0.0, 0.0, 0.3, 5.0])})[:, 0]
+    want = [min(0.2 / 1.3, 0.3 / 4.7), min(-0.3 / 1.3, 0.3 / 4.7), min(0.1 / 1.3, 0.0), -1.0]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("reward,mix", [("graded", 0.0), ("shaped", 0.5)])
+def test_p1_graded_and_shaped_rewards_by_hand(reward, mix):
+    """(1 + ~p_kappa) * (mix * (p_kappa - p_not_kappa) + (1 - mix) * g_kappa),
+    g_kappa = clip((0.3 - |q|) / (pi - 0.3), -1, 1)."""
+    spec = load_spec("pendulum/p1_swing_up")
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, reward=reward))
+    assert str(rs.reward) == f"(1 + ~p_kappa) * {reward[0]}_kappa"
+    rt = NetRuntime(rs)
+    assert rt.tables is not None and rt.tables.reward is None  # the state is read: no reward table
+    q = np.array([3.0, 0.5, 0.2, 0.1, -2.0])
+    x = np.stack([q, np.zeros_like(q)], axis=1)
+    M = rt.reset(x[:1])
+    got = []
+    for k in range(1, len(q)):
+        M1 = rt.step(M, x[k : k + 1], k * 0.05)
+        got.append(float(rt.reward(M, M1, x[k : k + 1])[0]))
+        M = M1
+    g = (0.3 - np.abs(q)) / (math.pi - 0.3)
+    inside = np.abs(q) < 0.3
+    want = (1.0 + inside[:-1]) * (mix * np.where(inside[1:], 1.0, -1.0) + (1.0 - mix) * g[1:])
+    np.testing.assert_allclose(got, want, rtol=1e-15, atol=0)
+    codes = rt.encode(rt.reset(x[:2]))
+    np.testing.assert_array_equal(
+        rt.reward_code(codes, codes, x[:2]), rt.reward(rt.decode(codes), rt.decode(codes), x[:2])
+    )
