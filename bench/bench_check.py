@@ -1,15 +1,16 @@
-"""``mitlc check`` on long CSV traces: the chunked numpy reader against the old row-by-row one.
+"""``mitlc check`` on long CSV traces: pyarrow's reader and the chunked numpy one against the old row-by-row one.
 
 Run:  python bench/bench_check.py [--repeat 3] [--big]
 
 Writes pendulum traces (columns t, q, qdot at dt = 0.05 s, every number as ``repr`` writes it,
 17 significant digits or so, as ``mitlc simulate --trace`` does) to a temporary directory and prints:
-the median time of :func:`mitlc.monitor.trace.read_trace`'s CSV reader and of the old reader
-(:func:`old_read_csv`, the code before issue #17 part 3, kept here as the baseline) on 100k and
-1M rows, and their ratio; the median wall time of a whole ``mitlc check`` process on 100k rows and
-of a bare ``python -c "import numpy"`` (the floor every start-up pays); with ``--big``, the wall
-time and peak RSS of a whole ``mitlc check`` on 10M rows (about 600 MB of text, deleted after).
-It prints timings; it asserts nothing about them.
+the median time of :func:`mitlc.monitor.trace.read_trace`'s CSV readers (pyarrow's, where pyarrow
+is installed, and numpy's) and of the old reader (:func:`old_read_csv`, the code before issue #17
+part 3, kept here as the baseline) on 100k and 1M rows; the median wall time of a whole ``mitlc
+check`` process on 100k rows with each reader (``MITLC_CSV_READER=numpy`` for numpy's) and of a
+bare ``python -c "import numpy"`` (the floor every start-up pays); with ``--big``, the wall time
+and peak RSS of a whole ``mitlc check`` on 10M rows (about 510 MiB of text, deleted after) with
+each reader. It prints timings; it asserts nothing about them.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitlc.errors import InputError
-from mitlc.monitor.trace import Trace, _read_csv
+from mitlc.monitor.trace import READER_ENV, Trace, _pyarrow, _read_csv_arrow, _read_csv_numpy
 
 SPEC = str(ROOT / "specs" / "pendulum" / "p3_avoid_speed_limit.mitl")
 NEEDED = ("q", "qdot")
@@ -93,14 +94,14 @@ def write_csv(path: Path, n: int) -> None:
             )
 
 
-def run_check(trace: Path) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MiB) of one whole ``mitlc check`` process."""
+def run_check(trace: Path, reader: str) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MiB) of one whole ``mitlc check`` process with ``reader``'s CSV reader."""
     code = (
         "import resource, sys\nfrom mitlc.cli.main import main\n"
         "try:\n    main(sys.argv[1:])\nexcept SystemExit as e:\n    code = e.code\n"
         "sys.stderr.write(f'{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}\\n')\nsys.exit(code)\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": str(ROOT), READER_ENV: reader}
     t0 = time.perf_counter()
     r = subprocess.run(
         [sys.executable, "-c", code, "check", SPEC, str(trace)], env=env, capture_output=True, text=True, check=False
@@ -114,31 +115,43 @@ def run_check(trace: Path) -> tuple[float, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--big", action="store_true", help="also a whole mitlc check on 10M rows (about 600 MB of text)")
+    ap.add_argument("--big", action="store_true", help="also a whole mitlc check on 10M rows (about 510 MiB of text)")
     args = ap.parse_args()
+    readers = ["pyarrow", "numpy"] if _pyarrow() is not None else ["numpy"]
+    if len(readers) == 1:
+        print("(pyarrow is not installed: the numpy reader only)")
     with tempfile.TemporaryDirectory() as tmp:
         print("CSV reading (t, q, qdot as repr writes them), median seconds:")
-        print(f"{'rows':>10} {'old':>9} {'new':>9} {'old/new':>8}")
+        print(f"{'rows':>10} {'old':>9} {'numpy':>9} {'pyarrow':>9} {'old/numpy':>10} {'numpy/pyarrow':>14}")
         for n in (100_000, 1_000_000):
             path = Path(tmp) / f"trace_{n}.csv"
             write_csv(path, n)
-            new = timed(lambda p=str(path): _read_csv(p, NEEDED), args.repeat)
+            fast = timed(lambda p=str(path): _read_csv_arrow(p, NEEDED), args.repeat) if len(readers) > 1 else math.nan
+            new = timed(lambda p=str(path): _read_csv_numpy(p, NEEDED), args.repeat)
             old = timed(lambda p=str(path): old_read_csv(p, NEEDED), args.repeat)
-            print(f"{n:>10} {old:>9.3f} {new:>9.3f} {old / new:>8.1f}")
+            print(f"{n:>10} {old:>9.3f} {new:>9.3f} {fast:>9.3f} {old / new:>10.1f} {new / fast:>14.1f}")
         small = Path(tmp) / "trace_100000.csv"
-        walls = [run_check(small)[0] for _ in range(max(3, args.repeat))]
-        bare = [timed(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 1) for _ in walls]
-        print(f"\nwhole mitlc check, 100k rows: {statistics.median(walls):.3f} s (median of {len(walls)})")
-        print(f"python -c 'import numpy':     {statistics.median(bare):.3f} s (the start-up floor)")
+        print()
+        for reader in readers:
+            walls = [run_check(small, reader)[0] for _ in range(max(3, args.repeat))]
+            print(
+                f"whole mitlc check, 100k rows, {reader:>7}: {statistics.median(walls):.3f} s (median of {len(walls)})"
+            )
+        bare = [timed(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 1) for _ in range(3)]
+        print(f"python -c 'import numpy':              {statistics.median(bare):.3f} s (the start-up floor)")
         for p in Path(tmp).glob("*.csv"):
             p.unlink()
         if args.big:
             big = Path(tmp) / "trace_10M.csv"
             write_csv(big, 10_000_000)
             size = big.stat().st_size / 2**20
-            wall, rss = run_check(big)
+            print()
+            for reader in readers:
+                wall, rss = run_check(big, reader)
+                print(
+                    f"whole mitlc check, 10M rows ({size:.0f} MiB), {reader:>7}: {wall:.1f} s, peak RSS {rss:.0f} MiB"
+                )
             big.unlink()
-            print(f"\nwhole mitlc check, 10M rows ({size:.0f} MiB): {wall:.1f} s, peak RSS {rss:.0f} MiB")
     print(f"(bench process peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB)")
 
 

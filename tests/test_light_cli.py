@@ -33,6 +33,8 @@ HEAVY = (
     "networkx",
     "gymnasium",
     "torch",
+    "pandas",  # pyarrow's to_numpy loads it; the pyarrow reader reads its buffers in place
+    "importlib.metadata",  # the plant entry points, looked up only for a plant mitlc does not know
     "mitlc.learn",
     "mitlc.petri",
     "mitlc.sweep",
@@ -229,3 +231,25 @@ def test_a_csv_error_is_one_located_line(tmp_path: Path) -> None:
     with pytest.raises(InputError) as info:
         read_trace(str(path), ("q", "qdot"), ("q", "qdot"))
     assert info.value.render().startswith(f"{path}:3: error: cannot read trace: field larger than field limit")
+
+
+def test_the_parser_tables_are_kept_on_disk(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Building the LALR tables was most of a short check's start-up: lark keeps them in mitlc's cache
+    folder, and a parser loaded from there parses as a built one does; MITLC_CACHE_DIR= turns it off."""
+    from mitlc.spec import parse as P
+
+    text = "[] (a -> <>[0:2.5] b) && !c"
+    built = str(P.parse_formula(text))
+    monkeypatch.setenv("MITLC_CACHE_DIR", str(tmp_path))
+    P._parser.cache_clear()
+    try:
+        assert str(P.parse_formula(text)) == built == "G (a -> F[0,2.5] b) & !c"
+        files = list((tmp_path / "parser").iterdir())
+        assert [f.name[:13] for f in files] == ["mitl-formula-"] and files[0].stat().st_size > 1000
+        P._parser.cache_clear()
+        assert str(P.parse_formula(text)) == built  # from the file this time
+        assert list((tmp_path / "parser").iterdir()) == files
+        monkeypatch.setenv("MITLC_CACHE_DIR", "")
+        assert P._table_file("grammar", "start") is False
+    finally:
+        P._parser.cache_clear()

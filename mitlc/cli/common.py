@@ -45,6 +45,8 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def _load_plant_files(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]) -> None:
+    if not values:  # click calls back without the option too: no import (importlib.metadata) then
+        return
     from mitlc.plants.user import load_plants
 
     for v in values:

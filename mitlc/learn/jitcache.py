@@ -34,6 +34,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from mitlc.cachedir import cache_root
+
 __all__ = ["cache_dir", "module_source", "load"]
 
 JIT_OPTIONS = "fastmath=False, error_model='numpy', nogil=True, cache=True"
@@ -46,11 +48,8 @@ class Unwritable(Exception):
 
 def cache_dir() -> Path | None:
     """The folder of the generated kernels, or None when the disk cache is off (``MITLC_CACHE_DIR=``)."""
-    env = os.environ.get("MITLC_CACHE_DIR")
-    if env is not None:
-        return Path(env) / "kernels" if env else None
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "mitlc" / "kernels"
+    root = cache_root()
+    return root / "kernels" if root is not None else None
 
 
 def _python_function(value: Any) -> types.FunctionType | None:
