@@ -27,7 +27,18 @@ import numpy as np
 
 from mitlc.errors import InputError
 
-__all__ = ["atomic_write", "save_npz", "write_block", "json_text", "finite_or_none", "npz_bytes"]
+__all__ = ["atomic_write", "save_npz", "write_block", "json_text", "finite_or_none", "npz_bytes", "cache_root"]
+
+
+def cache_root() -> Path | None:
+    """Where mitlc keeps files it can rebuild (compiled kernels, the spec parser's tables), or None
+    when the disk cache is off: ``$MITLC_CACHE_DIR`` if set (empty: off), else
+    ``$XDG_CACHE_HOME/mitlc`` or ``~/.cache/mitlc``. Everything there is mitlc's own and safe to delete."""
+    env = os.environ.get("MITLC_CACHE_DIR")
+    if env is not None:
+        return Path(env) if env else None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "mitlc"
 
 
 def _umask() -> int:

@@ -4,8 +4,9 @@ Python turns SIGINT into a KeyboardInterrupt at the next bytecode, wherever that
 it is inside a weakref callback or a ``__del__`` (the import system runs such callbacks
 while it loads modules) the exception is printed as "Exception ignored" and dropped, and a
 training the user meant to stop runs on. :func:`install` replaces Python's handler by one
-that also remembers the signal, and the trainers' per-trial callbacks call :func:`check`,
-which raises the interrupt again if it was swallowed. Only the standard library here: it
+that also remembers the signal (and keeps such a dropped interrupt's traceback off the
+screen), and the trainers' per-trial callbacks call :func:`check`, which raises the
+interrupt again if it was swallowed. Only the standard library here: it
 is installed before anything else of the command line loads.
 
 :func:`exit_interrupted` ends the program with status 130. CPython 3.11 marks a
@@ -37,10 +38,22 @@ def _handler(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
+def _unraisable(unraisable: sys.UnraisableHookArgs) -> None:
+    # a remembered Ctrl-C that Python could not raise (a weakref callback, a __del__, a ctypes
+    # callback such as numba's object cache): no "Exception ignored" traceback, check() raises it
+    if _seen and isinstance(unraisable.exc_value, KeyboardInterrupt):
+        return
+    _python_unraisable(unraisable)
+
+
+_python_unraisable = sys.unraisablehook
+
+
 def install() -> None:
     """Remember every SIGINT (where Python's own handler is in place: not when it is ignored)."""
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _handler)
+        sys.unraisablehook = _unraisable
 
 
 def pending() -> bool:

@@ -34,7 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from mitlc.cachedir import cache_root
+from mitlc.fileio import cache_root
 
 __all__ = ["cache_dir", "module_source", "load"]
 

@@ -27,8 +27,8 @@ from typing import Any
 import lark
 from lark import Lark, Token, Transformer
 
-from mitlc.cachedir import cache_root
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
+from mitlc.fileio import cache_root
 from mitlc.limits import MAX_SPEC_BYTES, MAX_TIME
 from mitlc.plants.base import PLANTS, Plant, StateVar
 from mitlc.plants.gym_env import GYM_PREFIX, ObsVar, env_info, gym_plant
