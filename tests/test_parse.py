@@ -362,3 +362,12 @@ def test_expected_tokens_are_said_in_words(text: str, expected: str) -> None:
     with pytest.raises(SpecSyntaxError) as info:
         parse_spec(text)
     assert expected in str(info.value)
+
+
+def test_error_lines_count_only_newlines() -> None:
+    """A NEL or a line separator inside a comment is not a line break for the parser, nor for the
+    error's position (hypothesis found '#\\x850' reported on line 2 of a one-line text)."""
+    for text in ("#\x850", "# a\u2028b", "#\x0c\n"):
+        with pytest.raises(MitlError) as err:
+            parse_spec(text, "fuzz.mitl")
+        assert (err.value.line, err.value.column) == (1, 1)

@@ -458,6 +458,15 @@ def _friendly(names: set[str]) -> str:
     return ", ".join(items)
 
 
+def _lines(text: str) -> list[str]:
+    """The lines as the parser counts them (only "\\n" ends one; a last empty line after a final
+    newline is not a line), at least one."""
+    lines = text.split("\n")
+    if len(lines) > 1 and lines[-1] == "":
+        lines.pop()
+    return [ln.removesuffix("\r") for ln in lines]
+
+
 def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntaxError:
     if isinstance(exc, lark.exceptions.UnexpectedCharacters):
         pos: int = exc.pos_in_stream  # type: ignore[assignment]  # lark types it None; the lexer always sets an int
@@ -466,7 +475,7 @@ def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntax
     if isinstance(exc, lark.exceptions.UnexpectedToken):
         tok = exc.token
         if tok.type == "$END":
-            lines = text.splitlines() or [""]
+            lines = _lines(text)
             line, col = len(lines), len(lines[-1]) + 1
             return SpecSyntaxError(
                 f"unexpected end of input, expected {_friendly(set(exc.expected))}",
@@ -481,7 +490,7 @@ def _syntax_error(exc: lark.exceptions.UnexpectedInput, text: str) -> SpecSyntax
             source=text,
             hint=_comparison_hint(tok, set(exc.expected)),
         )
-    lines = text.splitlines() or [""]
+    lines = _lines(text)
     return SpecSyntaxError("unexpected end of input", line=len(lines), column=len(lines[-1]) + 1, source=text)
 
 
@@ -866,7 +875,7 @@ def _parse_spec(text: str, path: str | None) -> Spec:
             options[key] = val
 
     if formula is None and not requirements:
-        lines = text.splitlines() or [""]
+        lines = _lines(text)
         raise SpecError("the spec has no 'formula' (nor any 'require')", line=len(lines), column=1)
 
     for f in (formula, check):
