@@ -9,6 +9,7 @@ tests/test_examples.py does when it checks the page.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -47,8 +48,16 @@ def refresh(page: Path) -> str:
     return "\n".join(out) + "\n"
 
 
+def _needs_dot(page: Path) -> bool:
+    lines = page.read_text(encoding="utf-8").splitlines()
+    return any(line.startswith("$ ") and ("--format svg" in line or "--format png" in line) for line in lines)
+
+
 if __name__ == "__main__":
     for name in sys.argv[1:]:
         path = Path(name)
+        if _needs_dot(path) and shutil.which("dot") is None:  # it would paste dot's "not installed" error
+            print(f"{path}: its picture commands need Graphviz's dot, which is not installed here; not refreshed")
+            sys.exit(2)
         path.write_text(refresh(path), encoding="utf-8")
         print(f"refreshed {path}")
