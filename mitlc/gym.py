@@ -353,7 +353,12 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._marking_of = np.asarray(table, dtype=np.int64)
         # one sample in plain Python where the tables hold the whole step (no timed obligations):
         # the propositions on floats, then look-ups by int; the marking as a row of a table
-        self._step1 = rt.sample_stepper() if self._marking_of is not None else None
+        self._step1 = rt.sample_stepper() if self._marking_of is not None and not rs.paid_by_monitor else None
+        # sparse, robustness, robustness-window: the monitor pays (mitlc.monitor.rewards), the net still runs
+        self._paid: Any = None
+        if rs.paid_by_monitor:
+            rewards = importlib.import_module("mitlc.monitor.rewards")
+            self._paid = rewards.TraceReward(self.mitl_spec, rs.options.reward, self.dt, self.state_names)
         if self._step1 is not None and (rt.tables is None or rt.tables.reward is None):
             self._step1 = None
         self._code1 = 0
@@ -483,6 +488,8 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self._online is not None:
             self._online.reset()
             self._add_online_verdict(info, x0)
+        if self._paid is not None:
+            self._paid.reset(x0[None, :])
         return self._observation(obs), info
 
     def _inside_init(self, x: np.ndarray) -> bool:
@@ -519,6 +526,8 @@ class MitlRewardWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 self._M = M_next
         if self.horizon is not None and tau >= self.horizon - 1e-9 * max(1.0, self.horizon):
             truncated = True
+        if self._paid is not None:  # the monitor's reward of the trace so far (terminal ones at its end)
+            reward = float(self._paid.step(self._trace[k : k + 1], bool(terminated or truncated))[0])
         info = dict(info)
         info["env_reward"] = env_reward
         info["marking"] = self.marking

@@ -85,7 +85,8 @@ def compile_options(fn: Callable[..., Any]) -> Callable[..., Any]:
         "clock": "standard: nested intervals count from their obligation's start (MITL); trial: every "
         "interval on the trial clock, the thesis's reading (overrides the spec's option).",
         "reward": "net: Table 4-2's reward, each proposition +1 / -1; graded: each proposition's robustness over "
-        "the state bounds, clipped to [-1, 1]; shaped: the mean of the two (overrides the spec's option; "
+        "the state bounds, clipped to [-1, 1]; shaped: the mean of the two; sparse, robustness, "
+        "robustness-window: the field's rewards, paid by the monitor (overrides the spec's option; "
         "docs/semantics.md).",
     }
     for name in reversed(list(helps)):

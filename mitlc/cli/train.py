@@ -336,6 +336,10 @@ def train(
     for w in rs.warnings:
         click.echo(w, err=True)
     agent = Sacpn(rs, settings, runs=runs, seed=seed)
+    if rs.paid_by_monitor:  # sparse, robustness, robustness-window
+        from mitlc.monitor.rewards import pay
+
+        pay(agent)
     wall_before = 0.0
     if meta is not None:
         agent.load(Path(resume_dir) / PARAMS)

@@ -424,6 +424,8 @@ def unsupported(agent: Any) -> str | None:
     rt = agent.runtime
     if rt.timed:
         return "the net has timed obligations (nested intervals)"
+    if agent.rs.paid_by_monitor:
+        return f"the reward is the monitor's ({agent.rs.options.reward}), not the net's"
     if rt.graded:
         return "the reward is graded (reward = shaped): it reads the state, not only the marking"
     if rt.tables is None or rt.tables.reward is None:

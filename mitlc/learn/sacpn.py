@@ -55,6 +55,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -215,6 +216,14 @@ class _Snapshot:
     trial: int
 
 
+class TraceRewardLike(Protocol):
+    """What pays SACPN in place of the net (:class:`mitlc.monitor.rewards.TraceReward`)."""
+
+    def reset(self, x0: np.ndarray) -> None: ...
+
+    def step(self, x: np.ndarray, last: bool) -> np.ndarray: ...
+
+
 class Sacpn:
     """SACPN for ``runs`` independent runs on one compiled spec.
 
@@ -230,11 +239,34 @@ class Sacpn:
     (2, 3)
     """
 
-    def __init__(self, rs: RewardSystem, settings: SacpnSettings | None = None, runs: int = 1, seed: int = 0) -> None:
+    def __init__(
+        self,
+        rs: RewardSystem,
+        settings: SacpnSettings | None = None,
+        runs: int = 1,
+        seed: int = 0,
+        trace_reward: TraceRewardLike | None = None,
+    ) -> None:
+        self.trace_reward = trace_reward
+        """What pays the learner when the spec's reward is the monitor's (``sparse``, ``robustness``,
+        ``robustness-window``): a :class:`mitlc.monitor.rewards.TraceReward` over the plant's state
+        columns (``mitlc train`` makes it); None where the net pays."""
         try:
             self._setup(rs, settings, runs, seed)
         except MitlError as exc:  # name the spec file where the error does not name another
             raise exc.located(rs.spec.path) from None
+
+    def _paying(self) -> TraceRewardLike | None:
+        """The monitor's reward, checked, where it pays; None where the net does."""
+        if not self.rs.paid_by_monitor:
+            return None
+        if self.trace_reward is None:
+            raise TrainingError(
+                f"reward {self.rs.options.reward} is paid by the monitor: give Sacpn(..., trace_reward="
+                "mitlc.monitor.rewards.TraceReward(spec, design, dt, plant state names)); mitlc train does",
+                file=self.spec.path,
+            )
+        return self.trace_reward
 
     def _setup(self, rs: RewardSystem, settings: SacpnSettings | None, runs: int, seed: int) -> None:
         settings = settings or SacpnSettings()
@@ -610,6 +642,9 @@ class Sacpn:
         scale = 1.0
 
         code = rt.reset_code(x)
+        paid = self._paying()  # the monitor's reward, where it pays instead of the net
+        if paid is not None:
+            paid.reset(x)
         # marked rows as flat indices into (R * P, F); with one token per run a 1-D index
         # (the actor's rows: flat; the critic's, which add the violation places: flat_c)
         one, one_c = K == 1, KC == 1
@@ -668,7 +703,12 @@ class Sacpn:
                 # the plant and the net move
                 integrate(x, a)
                 code1 = next_code[clock[k], code, atom_code(x)]
-                if plain:  # the tables say everything (the thesis's nets): two look-ups
+                if paid is not None:  # sparse, robustness, robustness-window: the monitor pays
+                    if timed:
+                        code1 = advance(code1, x)
+                    r = paid.step(x, k == N - 1)
+                    ret += r
+                elif plain:  # the tables say everything (the thesis's nets): two look-ups
                     r = reward_tab[code, code1]
                     ret += r if s_pen >= 1.0 else reward_full[code, code1]
                 else:
@@ -752,6 +792,9 @@ class Sacpn:
         rewards = np.empty((B, N))
         rt = self.runtime
         code = rt.reset_code(x)
+        paid = self._paying()
+        if paid is not None:
+            paid.reset(x)
         states[:, 0], codes[:, 0] = x, code
         for k in range(N):
             u = self.policy(x, code, xi)
@@ -760,7 +803,7 @@ class Sacpn:
                 u = np.clip(u + noise, -self.u_max, self.u_max)
             self.integrate(x, u)
             code1 = rt.step_code(code, x, (k + 1) * self.dt)
-            rewards[:, k] = rt.reward_code(code, code1, x)
+            rewards[:, k] = rt.reward_code(code, code1, x) if paid is None else paid.step(x, k == N - 1)
             code = code1
             states[:, k + 1], codes[:, k + 1], actions[:, k] = x, code, u
         return Rollout(states, actions, codes, rewards, self.dt)

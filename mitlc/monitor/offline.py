@@ -670,6 +670,13 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     return MonitorResult(satisfied, robustness, violation, tuple(failing))
 
 
+def verdict(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`monitor`'s ``satisfied`` and ``robustness`` ``(R,)`` alone (no blame, no violation time):
+    what the reward designs of :mod:`mitlc.monitor.rewards` pay from."""
+    ev, f = _prepare(spec, states, dt, formula)
+    return ev.sig(f, BOOL)[:, 0].copy(), ev.sig(f, REAL)[:, 0].astype(float)
+
+
 def signals(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> dict[str, np.ndarray]:
     """Robustness signal ``(R, N+1)`` of every subformula, keyed by its text.
 

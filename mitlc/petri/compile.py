@@ -66,7 +66,7 @@ from mitlc.petri.violations import (
     bounds_without_violation,
 )
 from mitlc.spec import ast as A
-from mitlc.spec.model import OPTIONS, Spec
+from mitlc.spec.model import MONITOR_REWARDS, OPTIONS, Spec
 from mitlc.spec.passes import is_state_formula, normal_form
 
 __all__ = ["CompileOptions", "RewardSystem", "compile_spec", "reward_reading", "state_groups"]
@@ -95,7 +95,9 @@ class CompileOptions:
     """``net``: Table 4-2's reward, each proposition a flat +1 / -1 (``p_a - p_not_a``).
     ``graded``: each proposition's grade instead, its robustness normalised by the state bounds
     and clipped to [-1, 1] (:mod:`mitlc.petri.grades`). ``shaped``: the mean of the two, so
-    the step at the region's boundary is kept and either side is graded (docs/semantics.md)."""
+    the step at the region's boundary is kept and either side is graded (docs/semantics.md).
+    ``sparse``, ``robustness``, ``robustness-window``: the field's rewards, paid by the monitor
+    (:mod:`mitlc.monitor.rewards`); the net is Table 4-2's, which the learner's places follow."""
 
     @staticmethod
     def from_spec(spec: Spec, **overrides: str | None) -> CompileOptions:
@@ -131,6 +133,12 @@ class RewardSystem:
     @property
     def atoms(self) -> tuple[str, ...]:
         return tuple(a for g in self.groups for a in g)
+
+    @property
+    def paid_by_monitor(self) -> bool:
+        """Whether the learner is paid by the monitor (``sparse``, ``robustness``, ``robustness-window``)
+        instead of :attr:`reward`."""
+        return self.options.reward in MONITOR_REWARDS
 
 
 # ------------------------------------------------------------------ builder
@@ -268,7 +276,7 @@ class _Builder(ViolationWatches):
 
     def _graded(self, atom: str, flat: R.RExpr, negated: bool) -> R.RExpr:
         """A proposition's reward: ``flat`` (+1 / -1), or its grade (``graded``), or their mean (``shaped``)."""
-        if self.options.reward == "net":
+        if self.options.reward not in ("shaped", "graded"):
             return flat
         atoms = [a for g in self.groups for a in g]
         return R.Graded(atom, atoms.index(atom), flat, negated, 0.5 if self.options.reward == "shaped" else 0.0)
@@ -682,7 +690,13 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
     if options.clock not in OPTIONS["clock"]:
         raise CompileError(f"unknown clock reading '{options.clock}' (standard or trial)")
     if options.reward not in OPTIONS["reward"]:
-        raise CompileError(f"unknown reward '{options.reward}' ({' or '.join(OPTIONS['reward'])})")
+        raise CompileError(f"unknown reward '{options.reward}' ({', '.join(OPTIONS['reward'])})")
+    if options.reward in MONITOR_REWARDS and options.violations != "off":
+        raise CompileError(
+            f"reward {options.reward} is paid by the monitor, not by the net: --violations {options.violations} "
+            "applies to the net's rewards (net, shaped, graded)",
+            file=spec.path,
+        )
     nf = normal_form(spec.formula)
     roots: list[A.Formula] = []
     formula = _split_reading(nf, options.clock == "standard", roots)

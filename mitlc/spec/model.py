@@ -39,9 +39,12 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     "conjunction": ("literal", "active"),
     "violations": ("off", "permanent", "counted"),
     "clock": ("standard", "trial"),
-    "reward": ("net", "shaped", "graded"),
+    "reward": ("net", "shaped", "graded", "sparse", "robustness", "robustness-window"),
 }
 """Spec options (``option NAME = VALUE``) and their allowed values; the first is the default."""
+
+MONITOR_REWARDS = ("sparse", "robustness", "robustness-window")
+"""The ``reward`` options paid by the monitor (:mod:`mitlc.monitor.rewards`), not by the net."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -46,6 +46,10 @@ def run_task(payload: Mapping[str, Any]) -> dict:
     agent = Sacpn(
         rs, SacpnSettings.from_dict(payload["settings"]), runs=int(payload["runs"]), seed=int(payload["seed"])
     )
+    if rs.paid_by_monitor:  # sparse, robustness, robustness-window
+        from mitlc.monitor.rewards import pay
+
+        pay(agent)
     record: dict[str, Any] = {
         "task": payload["key"],
         "seed": int(payload["seed"]),
