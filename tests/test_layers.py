@@ -29,7 +29,8 @@ ALLOWED: dict[str, set[str]] = {
     "learn": BASE | {"plants", "spec", "petri", "hybrid"},
     "sweep": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn"},
     "gym": BASE | {"plants", "spec", "petri", "monitor", "learn"},
-    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn", "sweep", "gym"},
+    "crm": BASE | {"plants", "spec", "petri", "monitor", "learn", "gym"},
+    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn", "sweep", "gym", "crm"},
 }
 """Stage -> the stages it may import."""
 
