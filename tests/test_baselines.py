@@ -132,3 +132,19 @@ def test_gymnasium_wrapper_pays_the_monitors_reward() -> None:
             assert rewards[-1] == (
                 float(info["verdict"]["satisfied"]) if design == "sparse" else info["verdict"]["robustness"]
             )
+
+
+def test_compile_says_who_pays() -> None:
+    from click.testing import CliRunner
+
+    from mitlc.cli.main import main
+
+    for design, says in [
+        ("sparse", "the learner is paid by the monitor instead"),
+        ("shaped", "s_a = (p_a - p_not_a + g_a) / 2"),
+        ("graded", "g_a = robustness of a over the state bounds"),
+    ]:
+        r = CliRunner().invoke(main, ["compile", "pendulum/p4_alternate", "--reward", design])
+        assert r.exit_code == 0 and says in r.output, r.output
+    r = CliRunner().invoke(main, ["compile", "pendulum/p4_alternate", "--reward", "dense"])
+    assert r.exit_code == 2 and "'dense' is not one of" in r.output

@@ -177,6 +177,11 @@ def to_text(rs: RewardSystem) -> str:
     out.append("reward r(M_k, M_k+1):")
     out.append(f"  {rs.reward}")
     out.append("  (p = tokens in place p at step k+1, ~p = at step k)")
+    if rs.grader is not None:
+        what = "s_a = (p_a - p_not_a + g_a) / 2, " if rs.options.reward == "shaped" else ""
+        out.append(f"  (reward {rs.options.reward}: {what}g_a = robustness of a over the state bounds, in [-1, 1])")
+    if rs.paid_by_monitor:
+        out.append(f"  (reward {rs.options.reward}: the learner is paid by the monitor instead; this is the net's own)")
     return "\n".join(out) + "\n"
 
 
