@@ -109,6 +109,28 @@ def train(job: tuple) -> dict:
     }
 
 
+def _job_file(job: tuple) -> str:
+    """A cached training's file name: the job and a digest of the code that trains it."""
+    import hashlib
+
+    import mitlc
+
+    key, _, _, trials, design, seed, runs = job
+    digest = hashlib.sha256(repr((job, mitlc.__version__, _code_digest())).encode()).hexdigest()[:12]
+    return f"{key}-{design}-s{seed}-r{runs}-t{trials}-{digest}.json"
+
+
+def _code_digest() -> str:
+    """The package's source, hashed: a cached result is used only by the code that made it."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for path in sorted((ROOT / "mitlc").rglob("*.py")):
+        h.update(path.read_bytes())
+    h.update(Path(__file__).read_bytes())
+    return h.hexdigest()
+
+
 def what_of(key: str) -> str:
     """A task's words (for a data file written before they were kept in it)."""
     return next((w for k, *_, w in TASKS if k == key), "")
@@ -144,16 +166,30 @@ def main() -> None:
         command += f" --seeds {args.seeds} --runs {args.runs}"
     t0 = time.perf_counter()
     jobs = [(k, f, p, t, d, s, runs) for k, f, p, t, _ in tasks for d in DESIGNS for s in range(seeds)]
-    results: list[dict] = []
+    # each finished training is kept (runs/benchmarks-cache, keyed by the job and the code's version),
+    # so a run that stops is resumed by running the same command again
+    cache = None if args.quick else ROOT / "runs" / "benchmarks-cache"
+    done: dict[int, dict] = {}
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        for i, job in enumerate(jobs):
+            f = cache / _job_file(job)
+            if f.is_file():
+                done[i] = json.loads(f.read_text(encoding="utf-8"))
+    todo = [i for i in range(len(jobs)) if i not in done]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for r in pool.map(train, jobs):
+        for i, r in zip(todo, pool.map(train, [jobs[i] for i in todo]), strict=True):
             print(f"{r['job']}: success {r['success']:.2f} ({r['wall_s']:.0f} s)", flush=True)
-            results.append(r)
+            done[i] = r
+            if cache is not None:
+                atomic_write(cache / _job_file(jobs[i]), json.dumps(r) + "\n")
+    results = [done[i] for i in range(len(jobs))]
     minutes = (time.perf_counter() - t0) / 60
     data: dict = {
         "command": command,
         "minutes": round(minutes, 1),
         "machine": machine("numba"),
+        "resumed": len(jobs) - len(todo),
         "quick": args.quick,
         "runs": runs,
         "seeds": seeds,

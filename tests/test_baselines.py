@@ -148,3 +148,14 @@ def test_compile_says_who_pays() -> None:
         assert r.exit_code == 0 and says in r.output, r.output
     r = CliRunner().invoke(main, ["compile", "pendulum/p4_alternate", "--reward", "dense"])
     assert r.exit_code == 2 and "'dense' is not one of" in r.output
+
+
+def test_a_diverging_run_gets_nan_not_an_error() -> None:
+    """A run whose state is no longer finite is paid nan (SACPN then stops that run); the others
+    are paid as the monitor says."""
+    spec = parse_spec(SPEC.format("F[0,1] a"))
+    for design in ("sparse", "robustness", "robustness-window"):
+        tr = TraceReward(spec, design, DT, ("q", "qdot"), runs=2)
+        tr.reset(np.array([[0.5, 0.0], [0.5, 0.0]]))
+        got = tr.step(np.array([[np.nan, 0.0], [0.2, 0.0]]), last=True)
+        assert np.isnan(got[0]) and got[1] == (1.0 if design == "sparse" else 0.5)  # max of q over [0, 1] s

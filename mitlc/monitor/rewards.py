@@ -115,9 +115,19 @@ class TraceReward:
             self._trace = grown
         self._trace[:, k] = x
         if self.design == "robustness-window":
-            _, rob = verdict(self.spec, self._states(max(0, k + 1 - self.window), k), self.dt, self.formula)
-            return rob
+            return self._judged(max(0, k + 1 - self.window), k)[1]
         if not last:
             return np.zeros(self.runs)
-        satisfied, rob = verdict(self.spec, self._states(0, k), self.dt, self.formula)
-        return satisfied.astype(float) if self.design == "sparse" else rob
+        satisfied, rob = self._judged(0, k)
+        return np.where(np.isnan(rob), np.nan, satisfied) if self.design == "sparse" else rob
+
+    def _judged(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """Verdict and robustness of samples ``a .. b``; nan for a run whose states there are not
+        finite (a diverging learner: its trainer stops that run, the monitor would refuse it)."""
+        ok = np.isfinite(self._trace[:, a : b + 1]).all(axis=(1, 2))
+        satisfied, rob = np.zeros(self.runs), np.full(self.runs, np.nan)
+        if ok.any():
+            rows = {c: v[ok] for c, v in self._states(a, b).items()}
+            s, r = verdict(self.spec, rows, self.dt, self.formula)
+            satisfied[ok], rob[ok] = s, r
+        return satisfied, rob
