@@ -48,7 +48,7 @@ TASKS = [
     ("P3", "specs/pendulum/p3_avoid_speed_limit.mitl", None, 1000, "P2 and a speed limit"),
     ("P4", "specs/pendulum/p4_alternate.mitl", None, 1500, "alternate between two targets"),
     ("P5", "specs/pendulum/p5_timed_visit.mitl", None, 1000, "visit kappa in [1, 2] s only"),
-    ("N1", "specs/pendulum/n1_reach_in_time.mitl", None, 2000, "reach within 2 s, stay, two obstacles"),
+    ("N3", "specs/pendulum/n3_bounded_response.mitl", None, 500, "every fast spell ends within 0.5 s, then up"),
     ("N2", "specs/pendulum/n2_hold_up.mitl", None, 500, "up within 1.5 s, then hold slowly"),
     ("cart", "examples/cart/cart_small_goal.mitl", CART_PLANT, 1500, "a small goal: |x - 1| < 0.2, |v| < 0.3"),
 ]
