@@ -44,13 +44,13 @@ def test_each_step_is_the_monitor_on_its_trace_or_window(f: A.Formula, design: s
     W = int(math.floor((h if math.isfinite(h) else 1.0) / DT + 1e-9)) + 1
     assert tr.window == W
     for k in range(1, n + 1):
-        if design == "robustness-window":
-            want = monitor(spec, x[:, max(0, k + 1 - W) : k + 1], DT).robustness
+        if design == "robustness-window":  # infinite robustness (no witness in the window) is paid finite
+            want = np.clip(monitor(spec, x[:, max(0, k + 1 - W) : k + 1], DT).robustness, -tr.bound, tr.bound)
         elif k < n:
             want = np.zeros(3)
         else:
             res = monitor(spec, x, DT)
-            want = res.satisfied.astype(float) if design == "sparse" else res.robustness
+            want = res.satisfied.astype(float) if design == "sparse" else np.clip(res.robustness, -tr.bound, tr.bound)
         np.testing.assert_array_equal(got[:, k - 1], want)
 
 
@@ -159,3 +159,13 @@ def test_a_diverging_run_gets_nan_not_an_error() -> None:
         tr.reset(np.array([[0.5, 0.0], [0.5, 0.0]]))
         got = tr.step(np.array([[np.nan, 0.0], [0.2, 0.0]]), last=True)
         assert np.isnan(got[0]) and got[1] == (1.0 if design == "sparse" else 0.5)  # max of q over [0, 1] s
+
+
+def test_infinite_robustness_is_paid_as_the_largest_margin() -> None:
+    """F(1,2] a over a window that cannot reach 1 s has robustness -inf; a reward must be finite."""
+    spec = parse_spec(SPEC.format("F(1,2] a & G a"))  # horizon inf (G): a window of 1 s = 3 samples
+    tr = TraceReward(spec, "robustness-window", DT, ("q", "qdot"))
+    assert tr.window == 3 and tr.bound == np.pi  # q > 0 over q in [-pi, pi]: margins up to pi
+    tr.reset(np.array([[0.5, 0.0]]))
+    r = tr.step(np.array([[0.5, 0.0]]), last=False)
+    assert r[0] == -tr.bound

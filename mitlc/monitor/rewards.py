@@ -89,6 +89,13 @@ class TraceReward:
         """``robustness-window``: samples in a window (its first sample and the formula's horizon after it)."""
         self._trace = np.zeros((self.runs, 16, len(self.columns)))
         self._k = -1
+        from mitlc.petri.grades import Grader  # the propositions' largest margins over the state box
+
+        scales = [s for row in Grader.of(spec, sorted(A.atoms(self.formula))).scales for s in row]
+        self.bound = max(scales, default=1.0)
+        """What an infinite robustness is paid as (``-inf``: no witness in the window or trace, as an
+        ``F[1,2]`` over a window of 1 s; ``+inf``: a vacuous ``G``): the largest margin in size that any
+        proposition has over the state box, so every payment is finite."""
 
     def reset(self, x0: np.ndarray) -> None:
         """Start every run's trace at ``x0`` ``(R, n)``."""
@@ -129,5 +136,5 @@ class TraceReward:
         if ok.any():
             rows = {c: v[ok] for c, v in self._states(a, b).items()}
             s, r = verdict(self.spec, rows, self.dt, self.formula)
-            satisfied[ok], rob[ok] = s, r
+            satisfied[ok], rob[ok] = s, np.clip(r, -self.bound, self.bound)
         return satisfied, rob
