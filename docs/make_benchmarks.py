@@ -65,6 +65,7 @@ TARGET = 0.8
 def train(job: tuple) -> dict:
     """One training of ``runs`` runs: its learning curve and final greedy rollouts by the monitor."""
     key, spec_file, plant_file, trials, design, seed, runs = job
+    from mitlc.errors import TrainingError
     from mitlc.learn.sacpn import Sacpn, SacpnSettings
     from mitlc.monitor.offline import monitor
     from mitlc.monitor.rewards import pay
@@ -83,20 +84,41 @@ def train(job: tuple) -> dict:
     start = time.perf_counter()
     step = max(1, trials // EVALS)
     done = 0
+    error = None
     while done < trials:
         n = min(step, trials - done)
-        agent.train(n, total=trials)
+        try:
+            agent.train(n, total=trials)
+        except TrainingError as exc:  # every run diverged: a result too (nothing succeeds)
+            error = str(exc)
+            break
         done += n
         ro = agent.rollout(x0.copy())
         curve.append(float(monitor(spec, ro.states, ro.dt).satisfied.mean()))
         at.append(done)
     wall = time.perf_counter() - start
+    if error is not None:
+        at += list(range(done + step, trials + 1, step))[: EVALS - len(at)] or [trials]
+        curve += [0.0] * (len(at) - len(curve))
+        return {
+            "job": [key, design, seed],
+            "success": 0.0,
+            "curve": curve,
+            "at": at,
+            "reach": None,
+            "effort": float("nan"),
+            "chatter": float("nan"),
+            "wall_s": wall,
+            "kernel": agent.kernel,
+            "error": error,
+        }
     ro = agent.rollout(agent.evaluation_states())
     res = monitor(spec, ro.states, ro.dt)
     u = ro.actions
     tv = np.abs(np.diff(u, axis=1)).sum(axis=1) / (u.shape[1] * ro.dt)
     reach = next((t for t, s in zip(at, curve, strict=True) if s >= TARGET), None)
     return {
+        "error": None,
         "job": [key, design, seed],
         "success": float(res.satisfied.mean()),
         "curve": curve,
@@ -245,7 +267,7 @@ def render(data: dict, out: Path, figures: Path, readme: bool) -> None:
             lines.append(
                 f"| {key}: {what} | {task['trials']} | `{design}` | **{_fmt_interval(succ)}** | "
                 f"{' / '.join(f'{s:.2f}' for s in succ)} | {reach_text} | "
-                f"{np.mean(d['effort']):.2f} | {np.mean(d['chatter']):.1f} | {np.mean(d['wall_s']):.0f} |"
+                f"{np.nanmean(d['effort']):.2f} | {np.nanmean(d['chatter']):.1f} | {np.mean(d['wall_s']):.0f} |"
             )
         best = max(DESIGNS, key=lambda d: means[d])
         field = max(DESIGNS[3:], key=lambda d: means[d])
