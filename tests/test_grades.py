@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 from mitlc.learn.runtime import NetRuntime
 from mitlc.monitor.offline import compile_pred
 from mitlc.petri.compile import CompileOptions, compile_spec
-from mitlc.petri.grades import Grader
 from mitlc.spec import predicates as P
+from mitlc.spec.grades import Grader
 from mitlc.spec.parse import load_spec, parse_spec
 
 # predicates over the mass-damper's q in [-1, 1] and qdot in [-5, 5]

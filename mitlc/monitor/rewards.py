@@ -89,7 +89,7 @@ class TraceReward:
         """``robustness-window``: samples in a window (its first sample and the formula's horizon after it)."""
         self._trace = np.zeros((self.runs, 16, len(self.columns)))
         self._k = -1
-        from mitlc.petri.grades import Grader  # the propositions' largest margins over the state box
+        from mitlc.spec.grades import Grader  # the propositions' largest margins over the state box
 
         scales = [s for row in Grader.of(spec, sorted(A.atoms(self.formula))).scales for s in row]
         self.bound = max(scales, default=1.0)

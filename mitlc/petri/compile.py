@@ -37,7 +37,6 @@ import numpy as np
 
 from mitlc.errors import CompileError
 from mitlc.petri import reward as R
-from mitlc.petri.grades import Grader
 from mitlc.petri.net import Guard, GuardTerm, Incidence, Net, Place, SubNet, Transition
 from mitlc.petri.parts import Arc, Part, tokens
 from mitlc.petri.reading import (
@@ -66,6 +65,7 @@ from mitlc.petri.violations import (
     bounds_without_violation,
 )
 from mitlc.spec import ast as A
+from mitlc.spec.grades import Grader
 from mitlc.spec.model import MONITOR_REWARDS, OPTIONS, Spec
 from mitlc.spec.passes import is_state_formula, normal_form
 
@@ -94,7 +94,7 @@ class CompileOptions:
     reward: str = "net"
     """``net``: Table 4-2's reward, each proposition a flat +1 / -1 (``p_a - p_not_a``).
     ``graded``: each proposition's grade instead, its robustness normalised by the state bounds
-    and clipped to [-1, 1] (:mod:`mitlc.petri.grades`). ``shaped``: the mean of the two, so
+    and clipped to [-1, 1] (:mod:`mitlc.spec.grades`). ``shaped``: the mean of the two, so
     the step at the region's boundary is kept and either side is graded (docs/semantics.md).
     ``sparse``, ``robustness``, ``robustness-window``: the field's rewards, paid by the monitor
     (:mod:`mitlc.monitor.rewards`); the net is Table 4-2's, which the learner's places follow."""
@@ -127,7 +127,7 @@ class RewardSystem:
     warnings: tuple[str, ...] = ()
     """What the compiler noticed (a part that no trial of the horizon can satisfy)."""
     grader: Grader | None = None
-    """``reward = shaped``: the propositions' grades (:mod:`mitlc.petri.grades`), in :attr:`atoms`
+    """``reward = shaped``: the propositions' grades (:mod:`mitlc.spec.grades`), in :attr:`atoms`
     order, which the reward reads at the new state; None when the reward reads markings only."""
 
     @property

@@ -113,7 +113,7 @@ class Graded(RExpr):
     """An atomic proposition's graded value at the new state, in place of its flat reward
     ``flat = p_a - p_not_a`` (+1 where ``a`` holds, -1 where not): ``mix * flat + (1 - mix) * g_a``,
     with ``g_a`` the predicate's robustness normalised by the state bounds and clipped to ``[-1, 1]``
-    (:mod:`mitlc.petri.grades`), read from column ``index`` of the ``grades`` that :meth:`evaluate`
+    (:mod:`mitlc.spec.grades`), read from column ``index`` of the ``grades`` that :meth:`evaluate`
     is given (negated for ``!a``). ``reward = graded`` is ``mix = 0`` (printed ``g_a``),
     ``reward = shaped`` is ``mix = 1/2`` (printed ``s_a``: the flat step at the boundary kept, half
     of it, and graded on either side).
