@@ -50,7 +50,7 @@ TASKS = [
     ("P5", "specs/pendulum/p5_timed_visit.mitl", None, 1000, "visit kappa in [1, 2] s only"),
     ("N3", "specs/pendulum/n3_bounded_response.mitl", None, 500, "every fast spell ends within 0.5 s, then up"),
     ("N2", "specs/pendulum/n2_hold_up.mitl", None, 500, "up within 1.5 s, then hold slowly"),
-    ("cart", "examples/cart/cart_small_goal.mitl", CART_PLANT, 1500, "a small goal: |x - 1| < 0.2, |v| < 0.3"),
+    ("cart", "examples/cart/cart_small_goal.mitl", CART_PLANT, 1500, "a small goal: abs(x - 1) < 0.2, abs(v) < 0.3"),
 ]
 QUICK_TASKS = [
     ("P1", "specs/pendulum/p1_swing_up.mitl", None, 20, "swing up"),
@@ -256,7 +256,7 @@ def render(data: dict, out: Path, figures: Path, readme: bool) -> None:
     ]
     summary = []
     for key, task in data["tasks"].items():
-        what = task.get("what") or what_of(key)
+        what = (task.get("what") or what_of(key)).replace("|", "\\|")  # a table cell
         means = {}
         for design in DESIGNS:
             d = task["designs"][design]
