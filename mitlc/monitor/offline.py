@@ -62,6 +62,7 @@ from mitlc.monitor.kernels import BOOL, REAL, TIME_TOL, Lattice, offsets, until,
 from mitlc.plants.base import wrap_angle
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
+from mitlc.spec.grades import margin
 from mitlc.spec.model import Spec
 
 __all__ = [
@@ -94,16 +95,6 @@ class MonitorResult:
 
 
 # ----------------------------------------------------------------- predicates
-
-
-def _compare_rob(op: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    if op in ("<", "<="):
-        return b - a
-    if op in (">", ">="):
-        return a - b
-    if op == "==":
-        return -np.abs(a - b)
-    return np.abs(a - b)
 
 
 _CMP = P.COMPARISONS
@@ -139,7 +130,7 @@ def compile_pred(p: P.Pred) -> PredFn:
             rob = np.full(shape, np.inf)
             for (cmp, op), a, b in zip(ops, values, values[1:], strict=False):
                 truth = truth & cmp(a, b)
-                d = _compare_rob(op, a, b)
+                d = margin(op, a, b)
                 rob = np.minimum(rob, np.where(np.isnan(d), 0.0, d))
             return truth, rob
 
