@@ -97,38 +97,50 @@ def _literal(v: float) -> str:
     return repr(float(v))
 
 
-def _expr(p: P.Pred, columns: dict[str, int]) -> str:
+def _expr(p: P.Pred, columns: dict[str, int], scalar: bool = False) -> str:
     """Python source of one predicate node over one state ``x (n,)``, built from the tree
     (numbers written by ``repr``, variables as ``x[i]``): what :func:`~mitlc.spec.predicates.compile_numpy`
-    computes, constant subtrees folded the same way, each node the same numpy function."""
+    computes, constant subtrees folded the same way, each node the same numpy function. ``scalar``:
+    over Python floats, with Python's operators where they are numpy's to the bit (:func:`scalar_atoms`)."""
+
+    def sub(q: P.Pred) -> str:
+        return _expr(q, columns, scalar)
+
     value = p.value if isinstance(p, P.Num) else P.const_value(p)
     if value is not None:
         return _literal(value)
     if isinstance(p, P.Var):
         return f"x[{int(columns[p.name])}]"
     if isinstance(p, P.Neg):
-        return f"np.negative({_expr(p.arg, columns)})"
+        return f"(-{sub(p.arg)})" if scalar else f"np.negative({sub(p.arg)})"
     if isinstance(p, P.BinOp):
-        return f"{_OPS[p.op]}({_expr(p.left, columns)}, {_expr(p.right, columns)})"
+        if scalar:
+            return _SCALAR_OPS[p.op].format(sub(p.left), sub(p.right))
+        return f"{_OPS[p.op]}({sub(p.left)}, {sub(p.right)})"
     if isinstance(p, P.Call):
-        return f"{_FUNCS[p.fn]}({', '.join(_expr(a, columns) for a in p.args)})"
+        args = ", ".join(sub(a) for a in p.args)
+        if not scalar:
+            return f"{_FUNCS[p.fn]}({args})"
+        if p.fn in _SCALAR_FUNCS:
+            return f"{_SCALAR_FUNCS[p.fn]}({args})"
+        return f"float({_FUNCS[p.fn]}({args}))"
     if isinstance(p, P.Compare):
-        ops = {"<": "<", "<=": "<=", ">": ">", ">=": ">=", "==": "==", "!=": "!="}
-        vals = [_expr(o, columns) for o in p.operands]
-        links = [f"({a} {ops[op]} {b})" for op, a, b in zip(p.ops, vals, vals[1:], strict=False)]
+        vals = [sub(o) for o in p.operands]
+        links = [f"({a} {op} {b})" for op, a, b in zip(p.ops, vals, vals[1:], strict=False)]
         return "(" + " and ".join(links) + ")"
     if isinstance(p, P.PAnd):
-        return f"({_expr(p.left, columns)} and {_expr(p.right, columns)})"
+        return f"({sub(p.left)} and {sub(p.right)})"
     if isinstance(p, P.POr):
-        return f"({_expr(p.left, columns)} or {_expr(p.right, columns)})"
+        return f"({sub(p.left)} or {sub(p.right)})"
     if isinstance(p, P.PNot):
-        return f"(not {_expr(p.arg, columns)})"
+        return f"(not {sub(p.arg)})"
     raise TypeError(f"not a predicate node: {p!r}")
 
 
-def atom_source(preds: Sequence[P.Pred], columns: dict[str, int]) -> str:
+def atom_source(preds: Sequence[P.Pred], columns: dict[str, int], scalar: bool = False) -> str:
     """Source of ``atoms(x)``: the atom code of one state (bit ``i`` = predicate ``i``),
-    as :meth:`~mitlc.learn.runtime.NetRuntime.atom_code` packs it.
+    as :meth:`~mitlc.learn.runtime.NetRuntime.atom_code` packs it (``scalar``: over Python
+    floats, for :func:`scalar_atoms`).
 
     >>> kappa = P.Compare((P.Call("abs", (P.Var("q"),)), P.Num(0.3)), ("<",))
     >>> print(atom_source([kappa], {"q": 0, "qdot": 1}))
@@ -140,7 +152,7 @@ def atom_source(preds: Sequence[P.Pred], columns: dict[str, int]) -> str:
     """
     lines = ["def atoms(x):", "    c = 0"]
     for i, p in enumerate(preds):
-        lines += [f"    if {_expr(p, columns)}:", f"        c += {1 << i}"]
+        lines += [f"    if {_expr(p, columns, scalar)}:", f"        c += {1 << i}"]
     lines.append("    return c")
     return "\n".join(lines)
 
@@ -162,35 +174,6 @@ def _sqrt(a: float) -> float:
     return math.sqrt(a) if a >= 0.0 else math.nan  # nan (not ValueError) below 0, as numpy gives
 
 
-def _scalar_expr(p: P.Pred, columns: dict[str, int]) -> str:
-    """:func:`_expr` over a sequence of Python floats, with Python's operators where they equal numpy's."""
-    value = p.value if isinstance(p, P.Num) else P.const_value(p)
-    if value is not None:
-        return _literal(value)
-    if isinstance(p, P.Var):
-        return f"x[{int(columns[p.name])}]"
-    if isinstance(p, P.Neg):
-        return f"(-{_scalar_expr(p.arg, columns)})"
-    if isinstance(p, P.BinOp):
-        return _SCALAR_OPS[p.op].format(_scalar_expr(p.left, columns), _scalar_expr(p.right, columns))
-    if isinstance(p, P.Call):
-        args = ", ".join(_scalar_expr(a, columns) for a in p.args)
-        if p.fn in _SCALAR_FUNCS:
-            return f"{_SCALAR_FUNCS[p.fn]}({args})"
-        return f"float({_FUNCS[p.fn]}({args}))"
-    if isinstance(p, P.Compare):
-        vals = [_scalar_expr(o, columns) for o in p.operands]
-        links = [f"({a} {op} {b})" for op, a, b in zip(p.ops, vals, vals[1:], strict=False)]
-        return "(" + " and ".join(links) + ")"
-    if isinstance(p, P.PAnd):
-        return f"({_scalar_expr(p.left, columns)} and {_scalar_expr(p.right, columns)})"
-    if isinstance(p, P.POr):
-        return f"({_scalar_expr(p.left, columns)} or {_scalar_expr(p.right, columns)})"
-    if isinstance(p, P.PNot):
-        return f"(not {_scalar_expr(p.arg, columns)})"
-    raise TypeError(f"not a predicate node: {p!r}")
-
-
 def scalar_atoms(preds: Sequence[P.Pred], columns: dict[str, int]) -> Callable[[Sequence[float]], int]:
     """``atoms(x)`` of :func:`atom_source` for one state given as Python floats, in plain Python:
     the atom code of one sample at a fraction of the cost of numpy calls on ``(1, n)`` arrays (the
@@ -202,12 +185,9 @@ def scalar_atoms(preds: Sequence[P.Pred], columns: dict[str, int]) -> Callable[[
     >>> scalar_atoms([kappa], {"q": 0, "qdot": 1})([0.1, 5.0])
     1
     """
-    lines = ["def atoms(x):", "    c = 0"]
-    for i, p in enumerate(preds):
-        lines += [f"    if {_scalar_expr(p, columns)}:", f"        c += {1 << i}"]
-    lines.append("    return c")
     namespace: dict[str, Any] = {"np": np, "math": math, "_div": _div, "_sqrt": _sqrt}
-    exec(compile("\n".join(lines), "<mitlc scalar atoms>", "exec"), namespace)  # generated from the tree
+    source = atom_source(preds, columns, scalar=True)
+    exec(compile(source, "<mitlc scalar atoms>", "exec"), namespace)  # generated from the tree
     return namespace["atoms"]
 
 
