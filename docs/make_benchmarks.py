@@ -24,6 +24,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import functools  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -142,6 +143,7 @@ def _job_file(job: tuple) -> str:
     return f"{key}-{design}-s{seed}-r{runs}-t{trials}-{digest}.json"
 
 
+@functools.cache
 def _code_digest() -> str:
     """The package's source, hashed: a cached result is used only by the code that made it."""
     import hashlib
