@@ -258,10 +258,7 @@ class _Builder(ViolationWatches):
             pos, neg = self.where[f.child.name]
             return self._graded(f.child.name, R.Sum((tokens(neg), R.Neg(tokens(pos)))), True)
         if isinstance(f, A.Weighted):
-            inner = self.reward(f.child, ctx, under_g, conj)
-            if isinstance(inner, R.Gated):
-                return R.Gated(inner.gate, R.scale(f.weight, inner.expr))
-            return R.scale(f.weight, inner)
+            return _weighted(f.weight, self.reward(f.child, ctx, under_g, conj))
         if isinstance(f, A.And):
             return self._and(f, ctx, under_g, conj)
         if isinstance(f, A.Or):
@@ -474,10 +471,7 @@ class _Builder(ViolationWatches):
         def rew(g: A.Formula) -> R.RExpr:
             w, core = peel_weights(g)
             if w != 1.0:
-                inner = rew(core)
-                if isinstance(inner, R.Gated):
-                    return R.Gated(inner.gate, R.scale(w, inner.expr))
-                return R.scale(w, inner)
+                return _weighted(w, rew(core))
             i = index[id(core)]
             node = tree.nodes[i]
             if node.op == "state":
@@ -488,7 +482,7 @@ class _Builder(ViolationWatches):
             if isinstance(core, A.Eventually):
                 if is_state_formula(core.child):
                     return gate(i, "open", self.reward(core.child, ctx, True))
-                return rew(core.child)
+                return pulled(i, core.child)
             if isinstance(core, A.Globally):
                 if is_state_formula(core.child):
                     return gate(i, "open", self._bonus(core.child, ctx))
@@ -500,6 +494,52 @@ class _Builder(ViolationWatches):
                     return gate(i, "open", self._bonus(core.right, ctx))
                 return rew(core.right)
             raise CompileError(f"cannot compile {type(core).__name__} in a timed obligation")
+
+        def head(g: A.Formula) -> R.RExpr | None:
+            """The reward of what ``g`` needs at the sample it starts, where that is a state formula:
+            ``g`` itself, the child of ``G``, ``F`` (interval from 0), the right side of ``U``, ``R``;
+            the min (``&``) or max (``|``) of the sides'; None where ``g`` needs nothing yet."""
+            w, core = peel_weights(g)
+            if is_state_formula(core):
+                return R.scale(w, self.reward(core, ctx, True))
+            if isinstance(core, (A.And, A.Or)):
+                sides = [head(core.left), head(core.right)]
+                if isinstance(core, A.Or) and None in sides:
+                    return None
+                known = [h for h in sides if h is not None]
+                if not known:
+                    return None
+                h = (
+                    known[0]
+                    if len(known) == 1
+                    else (R.Min(tuple(known)) if isinstance(core, A.And) else R.Max(tuple(known)))
+                )
+                return R.scale(w, h)
+            interval = getattr(core, "interval", None)
+            if interval is None or interval.lo > 0 or not interval.lo_closed:
+                return None
+            if isinstance(core, (A.Globally, A.Eventually)):
+                child = head(core.child)
+            elif isinstance(core, (A.Until, A.Release)):
+                child = head(core.right)
+            else:
+                return None
+            return None if child is None else R.scale(w, child)
+
+        def pulled(i: int, child: A.Formula) -> R.RExpr:
+            """The reward of ``F_I child`` for a temporal ``child``: the child's own while one of
+            its instances is live, and while none is (``F[0,2] G goal`` away from the goal: every
+            instance started is false at once) and the window is open, the reward of what a new
+            instance would need now (:func:`head`), so that the learner is pulled towards it."""
+            own = rew(child)
+            need = head(child)
+            c = index[id(peel_weights(child)[1])]
+            if need is None or c not in names:
+                return own
+            waiting = R.Gated(
+                R.Prod((tokens([names[i]["open"]], prev=True), tokens([names[c]["idle"]], prev=True))), need
+            )
+            return R.Sum((own, waiting))
 
         return rew(f)
 
@@ -652,6 +692,16 @@ def _unsatisfiable(spec: Spec, nf: A.Formula) -> list[str]:
                 "every trial violates it (option clock = trial reads intervals on the trial clock)"
             )
     return out
+
+
+def _weighted(w: float, e: R.RExpr) -> R.RExpr:
+    """``w * e`` with a timing gate kept outside (so that ``min_active`` still sees it): a gated
+    term scales its expression, a sum of gated terms each of its terms."""
+    if isinstance(e, R.Gated):
+        return R.Gated(e.gate, R.scale(w, e.expr))
+    if isinstance(e, R.Sum) and all(isinstance(t, R.Gated) for t in e.terms):
+        return R.Sum(tuple(_weighted(w, t) for t in e.terms))
+    return R.scale(w, e)
 
 
 def _resolve(e: R.RExpr, index: dict[str, int]) -> R.RExpr:

@@ -252,12 +252,7 @@ class Min(RExpr):
         values = np.stack([t.evaluate(prev, now, grades) for t in self.terms])
         if not self.active:
             return values.min(axis=0)
-        open_ = np.stack(
-            [
-                t.gate.evaluate(prev, now, grades) > 0 if isinstance(t, Gated) else np.ones(prev.shape[0], bool)
-                for t in self.terms
-            ]
-        )
+        open_ = np.stack([gate_open(t, prev, now) for t in self.terms])
         masked = np.where(open_, values, np.inf).min(axis=0)
         return np.where(open_.any(axis=0), masked, 0.0)
 
@@ -282,6 +277,16 @@ class Max(RExpr):
 
     def __str__(self) -> str:
         return f"max({', '.join(str(t) for t in self.terms)})"
+
+
+def gate_open(t: RExpr, prev: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """Where the term ``t`` of a ``min_active`` is in, per row: a :class:`Gated` term where its
+    gate is positive, a sum of gated terms where any of theirs is, any other term everywhere."""
+    if isinstance(t, Gated):
+        return np.asarray(t.gate.evaluate(prev, now) > 0)
+    if isinstance(t, Sum) and all(isinstance(u, Gated) for u in t.terms):
+        return np.any([gate_open(u, prev, now) for u in t.terms], axis=0)
+    return np.ones(prev.shape[0], bool)
 
 
 def scale(w: float, e: RExpr) -> RExpr:
@@ -375,9 +380,7 @@ def pair_bounds(e: RExpr, prev: np.ndarray, now: np.ndarray) -> tuple[np.ndarray
         los, his = np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts])
         if not e.active:
             return los.min(axis=0), his.min(axis=0)
-        open_ = np.stack(
-            [t.gate.evaluate(prev, now) > 0 if isinstance(t, Gated) else np.ones(prev.shape[0], bool) for t in e.terms]
-        )
+        open_ = np.stack([gate_open(t, prev, now) for t in e.terms])
         any_open = open_.any(axis=0)
         lo = np.where(any_open, np.where(open_, los, np.inf).min(axis=0), 0.0)
         hi = np.where(any_open, np.where(open_, his, np.inf).min(axis=0), 0.0)
