@@ -1,8 +1,10 @@
-"""Stable-Baselines3 SAC on Gymnasium's Pendulum-v1, with and without counterfactual markings.
+"""Stable-Baselines3 SAC on Gymnasium's Pendulum-v1, with and without counterfactual markings, and on the cart.
 
 The compiled reward of a thesis spec pays SAC through :class:`mitlc.gym.MitlRewardWrapper`
 (``marking_obs="box"``: Pendulum's observation and the marking); with ``--crm`` rows the replay
-buffer is :class:`mitlc.crm.CounterfactualReplayBuffer`. After ``--steps`` environment steps the
+buffer is :class:`mitlc.crm.CounterfactualReplayBuffer`. The cart with the small goal
+(examples/cart/) runs as :class:`mitlc.gym.MitlPlantEnv`, the plant as an environment paying
+the compiled reward. After the row's environment steps (``--steps`` for the pendulum) the
 deterministic policy runs ``--episodes`` episodes from seeded resets, each judged by the monitor
 on its whole trace; a row is the success rate's mean and 95 % interval over ``--seeds`` seeds,
 with the mean |u|, the input's total variation per second and the wall time.
@@ -38,30 +40,40 @@ from results_stats import interval, machine  # noqa: E402  (docs/, the script's 
 from mitlc.fileio import atomic_write, write_block  # noqa: E402
 
 BEGIN, END = "<!-- sb3:begin -->", "<!-- sb3:end -->"
-# key, spec, reward design, counterfactual markings
+CART_PLANT = "examples/cart/cart_plant.py"
+CART_STEPS = 15_000  # the cart's trainings, whatever --steps says (it sizes the pendulum's)
+# key, spec, reward design, counterfactual markings, plant file (None: Pendulum-v1 through the wrapper)
 ROWS = [
-    ("P1", "specs/pendulum/p1_swing_up.mitl", "net", False),
-    ("P1", "specs/pendulum/p1_swing_up.mitl", "shaped", False),
-    ("P4", "specs/pendulum/p4_alternate.mitl", "net", False),
-    ("P4", "specs/pendulum/p4_alternate.mitl", "net", True),
+    ("P1", "specs/pendulum/p1_swing_up.mitl", "net", False, None),
+    ("P1", "specs/pendulum/p1_swing_up.mitl", "shaped", False, None),
+    ("P4", "specs/pendulum/p4_alternate.mitl", "net", False, None),
+    ("P4", "specs/pendulum/p4_alternate.mitl", "net", True, None),
+    ("cart", "examples/cart/cart_small_goal.mitl", "net", False, CART_PLANT),
+    ("cart", "examples/cart/cart_small_goal.mitl", "shaped", False, CART_PLANT),
 ]
 
 
 def train(job: tuple) -> dict:
-    key, spec_file, design, crm, seed, steps, episodes = job
+    key, spec_file, design, crm, plant_file, seed, steps, episodes = job
     import gymnasium as gym
     import torch
     from stable_baselines3 import SAC
 
-    from mitlc.gym import MitlRewardWrapper, pendulum_v1_state
+    from mitlc.gym import MitlPlantEnv, MitlRewardWrapper, pendulum_v1_state
+    from mitlc.monitor.offline import monitor
     from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.plants.user import load_plants
     from mitlc.spec.parse import load_spec
 
     torch.set_num_threads(1)
+    if plant_file is not None:
+        load_plants(str(ROOT / plant_file))
     spec = load_spec(ROOT / spec_file)
     rs = compile_spec(spec, CompileOptions.from_spec(spec, reward=design))
 
-    def make(verdict: str) -> MitlRewardWrapper:
+    def make(verdict: str) -> gym.Env:
+        if plant_file is not None:  # the monitor judges the plant's states, the observation's first entries
+            return MitlPlantEnv(rs, plant=spec.plant_name, marking_obs="box")
         return MitlRewardWrapper(
             gym.make("Pendulum-v1"), rs, pendulum_v1_state, marking_obs="box", verdict=verdict, truncate_at_horizon=True
         )
@@ -78,28 +90,48 @@ def train(job: tuple) -> dict:
     wall = time.perf_counter() - start
     test = make("end")
     wins, effort, chatter = [], [], []
+    n_state = len(spec.plant.state) if spec.plant is not None else 0
     for e in range(episodes):
         obs, _ = test.reset(seed=10_000 * (seed + 1) + e)
-        us = []
+        us, xs = [], [np.asarray(obs, dtype=float)[:n_state]]
         while True:
             a, _ = model.predict(obs, deterministic=True)
             obs, _, terminated, truncated, info = test.step(a)
-            us.append(float(np.asarray(a).reshape(-1)[0]))  # Pendulum-v1's action is the torque, in [-2, 2] N m
+            us.append(float(np.asarray(a).reshape(-1)[0]))  # the input: Pendulum-v1's torque, the cart's force
+            xs.append(np.asarray(obs, dtype=float)[:n_state])
             if terminated or truncated:
                 break
-        wins.append(bool(info["verdict"]["satisfied"]))
+        if plant_file is not None:
+            wins.append(bool(monitor(spec, np.array(xs), test.dt).satisfied[0]))
+        else:
+            wins.append(bool(info["verdict"]["satisfied"]))
         u = np.array(us)
         effort.append(float(np.abs(u).mean()))
         chatter.append(float(np.abs(np.diff(u)).sum() / (len(u) * test.dt)))
     added = int(getattr(model.replay_buffer, "added", 0))
     return {
         "job": [key, design, crm, seed],
+        "steps": steps,
         "success": float(np.mean(wins)),
         "effort": float(np.mean(effort)),
         "chatter": float(np.mean(chatter)),
         "wall_s": wall,
         "counterfactual_per_step": added / steps,
     }
+
+
+def _job_file(job: tuple) -> str:
+    """A cached training's file name: the job and a digest of the code that trains it."""
+    import hashlib
+
+    import mitlc
+
+    h = hashlib.sha256(repr((job, mitlc.__version__)).encode())
+    for path in sorted((ROOT / "mitlc").rglob("*.py")):
+        h.update(path.read_bytes())
+    h.update(Path(__file__).read_bytes())
+    key, _, design, crm, _, seed, steps, episodes = job
+    return f"{key}-{design}-{'crm' if crm else 'plain'}-s{seed}-n{steps}-e{episodes}-{h.hexdigest()[:12]}.json"
 
 
 def main() -> None:
@@ -116,38 +148,58 @@ def main() -> None:
     if not args.quick and (args.seeds, args.steps, args.episodes) != (5, 12_000, 20):
         command += f" --seeds {args.seeds} --steps {args.steps} --episodes {args.episodes}"
     t0 = time.perf_counter()
-    jobs = [(k, f, d, c, s, steps, episodes) for k, f, d, c in ROWS for s in range(seeds)]
-    results = []
+    jobs = [
+        (k, f, d, c, pf, s, steps if pf is None or args.quick else CART_STEPS, episodes)
+        for k, f, d, c, pf in ROWS
+        for s in range(seeds)
+    ]
+    # each finished training is kept (runs/sb3-cache, keyed by the job and a digest of the code), so a
+    # run that stops is resumed by running the same command again
+    cache = None if args.quick else ROOT / "runs" / "sb3-cache"
+    done: dict[int, dict] = {}
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        for i, job in enumerate(jobs):
+            f = cache / _job_file(job)
+            if f.is_file():
+                done[i] = json.loads(f.read_text(encoding="utf-8"))
+    todo = [i for i in range(len(jobs)) if i not in done]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for r in pool.map(train, jobs):
+        for i, r in zip(todo, pool.map(train, [jobs[i] for i in todo]), strict=True):
             print(f"{r['job']}: success {r['success']:.2f} ({r['wall_s']:.0f} s)", flush=True)
-            results.append(r)
+            if cache is not None:
+                atomic_write(cache / _job_file(jobs[i]), json.dumps(r) + "\n")
+            done[i] = r
+    results = [done[i] for i in range(len(jobs))]
     minutes = (time.perf_counter() - t0) / 60
     import stable_baselines3
     import torch
 
+    cart_steps = steps if args.quick else CART_STEPS
     lines = [
         BEGIN,
-        "## Stable-Baselines3 SAC on Gymnasium's Pendulum-v1",
+        "## Stable-Baselines3 SAC on Gymnasium's Pendulum-v1 and on the cart",
         "",
-        f"Generated by `{command}` in {minutes:.1f} min ({machine('numba')}, torch {torch.__version__}, "
-        f"stable-baselines3 {stable_baselines3.__version__}). SAC with Stable-Baselines3's defaults for "
-        f"{steps} environment steps, paid by the spec's compiled reward through `MitlRewardWrapper` "
-        '(`marking_obs="box"`); **CRM**: with `mitlc.crm.CounterfactualReplayBuffer`. Success: the fraction '
-        f"of {episodes} deterministic test episodes (seeded resets) that the monitor accepts, mean and 95 % "
+        f"Generated by `{command}` in {minutes:.1f} min{' (resumed from its cache)' if len(todo) < len(jobs) else ''} "
+        f"({machine('numba')}, torch {torch.__version__}, stable-baselines3 {stable_baselines3.__version__}). "
+        f"SAC with Stable-Baselines3's defaults for {steps} environment steps on Pendulum-v1 ({cart_steps} on the "
+        "cart), paid by the spec's compiled reward with the row's design: Pendulum-v1 through `MitlRewardWrapper` "
+        '(`marking_obs="box"`), the cart of examples/cart/ as `MitlPlantEnv`; **CRM**: with '
+        "`mitlc.crm.CounterfactualReplayBuffer`. Success: the fraction of "
+        f"{episodes} deterministic test episodes (seeded resets) that the monitor accepts, mean and 95 % "
         f"interval over {seeds} seeds. Pendulum-v1's torque limit is 2 N m, not the thesis pendulum's.",
         "",
-        "| spec | reward | CRM | success | per seed | abs(u) | TV/s | counterfactual / step | wall s |",
-        "| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: |",
+        "| spec | reward | CRM | steps | success | per seed | abs(u) | TV/s | counterfactual / step | wall s |",
+        "| --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: |",
     ]
     data = {"command": command, "minutes": round(minutes, 1), "steps": steps, "seeds": seeds, "rows": []}
-    for key, spec_file, design, crm in ROWS:
+    for key, spec_file, design, crm, _plant in ROWS:
         rs = [r for r in results if r["job"][:3] == [key, design, crm]]
         succ = [r["success"] for r in rs]
         m, h = interval(succ)
         cell = f"{m:.2f}" if not np.isfinite(h) else f"{m:.2f} ± {h:.2f}"
         lines.append(
-            f"| {key} | `{design}` | {'yes' if crm else 'no'} | **{cell}** | "
+            f"| {key} | `{design}` | {'yes' if crm else 'no'} | {rs[0]['steps']} | **{cell}** | "
             f"{' / '.join(f'{s:.2f}' for s in succ)} | {np.mean([r['effort'] for r in rs]):.2f} | "
             f"{np.mean([r['chatter'] for r in rs]):.1f} | {np.mean([r['counterfactual_per_step'] for r in rs]):.2f} | "
             f"{np.mean([r['wall_s'] for r in rs]):.0f} |"
