@@ -39,3 +39,33 @@ def test_quick_benchmark_writes_page_figure_and_data(tmp_path) -> None:
             shown = float(re.search(r"\*\*([0-9.]+)", row).group(1))
             assert shown == round(float(np.mean(d["success"])), 2)
     assert page.count("| `net` |") == 2 and "## What the numbers say" in page
+
+
+def test_cart_section_ranks_fixed_controllers() -> None:
+    """The cart's section: both compiled rewards pay the braking controller, which the monitor accepts,
+    more than standing still, and driving into the stop least; pushing left earns what standing still
+    earns under net (every step outside the goal pays -1 until F[0,2]'s window closes: 40 steps of -1)."""
+    sys.path.insert(0, str(ROOT / "docs"))
+    try:
+        import make_benchmarks
+    finally:
+        sys.path.remove(str(ROOT / "docs"))
+    lines = make_benchmarks._cart_section("examples/cart/cart_small_goal.mitl")
+    rows = {}
+    for ln in lines:
+        cells = [c.strip() for c in ln.strip("|").split("|")]
+        if len(cells) == 6 and cells[0].split(":")[0] in (
+            "brake at the goal",
+            "stand still",
+            "full force left",
+            "full force right, into the stop",
+        ):
+            rows[cells[0].split(":")[0]] = [float(c) for c in cells[1:]]
+    assert len(rows) == 4
+    brake, still, left, right = (
+        rows[k] for k in ("brake at the goal", "stand still", "full force left", "full force right, into the stop")
+    )
+    assert brake[4] == 1.0 and still[4] == left[4] == right[4] == 0.0
+    for col in range(4):  # net and shaped, discounted and total
+        assert brake[col] > still[col] >= left[col] > right[col]
+    assert still[1] == left[1] == -40.0  # net, total: 2 s of -1 per 0.05 s step, then 0

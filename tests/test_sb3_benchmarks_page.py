@@ -1,5 +1,6 @@
 """docs/make_sb3_benchmarks.py --quick: SB3 SAC through the wrapper, with and without counterfactual
-markings, runs and reports what it measured (a smoke run: 1 seed, 200 steps, 2 test episodes)."""
+markings, and on the cart as MitlPlantEnv, runs and reports what it measured (a smoke run: 1 seed,
+200 steps, 2 test episodes)."""
 
 from __future__ import annotations
 
@@ -26,11 +27,13 @@ def test_quick_sb3_benchmark(tmp_path) -> None:
     block = (tmp_path / "sb3.md").read_text(encoding="utf-8")
     data = json.loads((tmp_path / "benchmarks_sb3.json").read_text(encoding="utf-8"))
     assert block.startswith("<!-- sb3:begin -->") and block.rstrip().endswith("<!-- sb3:end -->")
-    assert len(data["rows"]) == 4 and data["steps"] == 200
+    assert len(data["rows"]) == 6 and data["steps"] == 200
     by = {(row["spec"].split("/")[-1], row["design"], row["crm"]): row["results"][0] for row in data["rows"]}
     # problem 4's recurrence: one counterfactual marking per step with CRM, none without
     assert by[("p4_alternate.mitl", "net", True)]["counterfactual_per_step"] == 1.0
     assert by[("p4_alternate.mitl", "net", False)]["counterfactual_per_step"] == 0.0
     for res in by.values():
         assert 0.0 <= res["success"] <= 1.0 and 0.0 <= res["effort"] <= 2.0
-    assert block.count("| P4 | `net` |") == 2
+    assert by[("cart_small_goal.mitl", "shaped", False)]["counterfactual_per_step"] == 0.0
+    assert all(res["steps"] == 200 for res in by.values())
+    assert block.count("| P4 | `net` |") == 2 and block.count("| cart | ") == 2
