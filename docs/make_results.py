@@ -7,6 +7,7 @@ success by the monitor on each run's final greedy rollout, as the mean over the 
 masking M_k vs M_k+1, the anti-wind-up, problem 4's conjunction).
 
     python docs/make_results.py            # about 20 minutes on 2 cores
+    python docs/make_results.py --readme   # README's sentence again, from docs/figures/results.json
 
 Figures go to docs/figures/ (learning_<p>.png, rollout_<p>.png, masking.png).
 """
@@ -29,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from results_stats import interval, machine  # noqa: E402  (docs/, the script's own folder)
 
-from mitlc.fileio import atomic_write  # noqa: E402
+from mitlc.fileio import atomic_write, write_block  # noqa: E402
 from mitlc.learn.plots import learning_curve, png_bytes, rollout_figure  # noqa: E402
 from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
 from mitlc.monitor.offline import monitor  # noqa: E402
@@ -187,6 +188,9 @@ def main() -> None:
         raw[key] = [
             {k: v for k, v in r.items() if k in ("success", "final_return", "wall_s", "max_abs_xi")} for r in per_seed
         ]
+        for entry in raw[key]:
+            entry["design"] = options.get("reward") or per_seed[0]["spec"].option("reward")
+            entry["options"] = options
         if key.startswith("P4"):
             for r, entry in zip(per_seed, raw[key], strict=True):
                 entry["failures"] = r["failures"] = p4_failures(r)
@@ -217,7 +221,36 @@ def main() -> None:
             )
     total = time.perf_counter() - total_start
     write_doc(rows, comparisons, total)
+    raw["_run"] = {"command": COMMAND, "machine": machine("numba"), "minutes": round(total / 60, 1), "runs": RUNS}
     atomic_write(FIGURES / "results.json", json.dumps(raw, indent=1) + "\n")
+    write_readme()
+
+
+README_BEGIN, README_END = "<!-- results:begin -->", "<!-- results:end -->"
+
+
+def write_readme() -> None:
+    """README's sentence on the five problems at 5 seeds x 30 runs, from docs/figures/results.json."""
+    raw = json.loads((FIGURES / "results.json").read_text(encoding="utf-8"))
+    run = raw["_run"]
+    cells, missed = [], []
+    for key, *_rest in PROBLEMS:
+        if key not in raw or key == "P4-literal":
+            continue
+        m, h = interval([e["success"] for e in raw[key]])
+        design = raw[key][0]["design"]
+        cells.append(f"{key} {m:.2f} ± {h:.2f}" + (f" (`{design}`)" if design != "net" else ""))
+        if m < TARGET:
+            missed.append(key)
+    n = len(raw["P1"])
+    text = (
+        f"With one set of settings and the design in brackets where it is not `net`, {n} seeds x {run['runs']} "
+        f"runs, mean success and its 95 % interval: {', '.join(cells)}"
+        + (f"; {', '.join(missed)} below the target of {TARGET:.2f}" if missed else "")
+        + f" (`{run['command']}`, {run['minutes']:.0f} min on {run['machine']}; "
+        "[docs/results.md](docs/results.md))."
+    )
+    write_block(ROOT / "README.md", README_BEGIN, README_END, f"{README_BEGIN}\n{text}\n{README_END}\n")
 
 
 def write_doc(rows, comparisons, total: float) -> None:
@@ -394,4 +427,10 @@ def write_doc(rows, comparisons, total: float) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:] == ["--readme"]:
+        write_readme()
+    elif sys.argv[1:]:
+        print(f"usage: {COMMAND} [--readme]", file=sys.stderr)
+        sys.exit(2)
+    else:
+        main()
