@@ -43,7 +43,8 @@ SEEDS = (0, 1, 2, 3, 4)
 TARGET = 0.95  # issue 18: each of P1-P5 at 0.95 or more, mean over 5 seeds x 30 runs
 FIGURES = ROOT / "docs" / "figures"
 
-P4_OPTIONS: dict = {}
+# P4's row trains its best design in docs/benchmarks.md (net reaches the target on the others but P5)
+P4_OPTIONS: dict = {"reward": "shaped"}
 
 PROBLEMS = [
     # key, spec, trials, compile options over the spec's own (the table's design column), target,
@@ -81,6 +82,7 @@ PROBLEMS = [
         "the learning curve converges to a negative value; alternation shown (Fig. 4-11). "
         "The spec reads & as the min over the terms whose timing gate is open (not in the thesis)",
     ),
+    ("P4-net", "p4_alternate.mitl", 1500, {"reward": "net"}, TARGET, "the compiled reward with its flat propositions"),
     ("P4-literal", "p4_alternate.mitl", 1500, {"conjunction": "literal"}, 0.6, "the thesis's literal min of (4-17)"),
     (
         "P5",
@@ -199,7 +201,7 @@ def main() -> None:
     comparisons = []
     fig = None
     for key, spec_file, trials, options, *_ in PROBLEMS:
-        if key == "P4-literal":
+        if key in ("P4-net", "P4-literal"):
             continue
         r = train(spec_file, trials, 0, options, mask="next")
         comparisons.append(("mask", key, r))
@@ -235,7 +237,7 @@ def write_readme() -> None:
     run = raw["_run"]
     cells, missed = [], []
     for key, *_rest in PROBLEMS:
-        if key not in raw or key == "P4-literal":
+        if key not in raw or key in ("P4-net", "P4-literal"):
             continue
         m, h = interval([e["success"] for e in raw[key]])
         design = raw[key][0]["design"]
@@ -303,7 +305,7 @@ def write_doc(rows, comparisons, total: float) -> None:
     else:
         lines.append("Every problem reaches its target as the mean over the seeds.")
     p4 = {row[0]: row[6] for row in rows if row[0].startswith("P4")}
-    if "P4" in p4 and "P4-literal" in p4:
+    if {"P4", "P4-net", "P4-literal"} <= set(p4):
         fails = {k: {n: sum(r["failures"][n] for r in rs) for n in rs[0]["failures"]} for k, rs in p4.items()}
         total = {k: sum(1 - r["success"] for r in rs) * RUNS for k, rs in p4.items()}
 
@@ -320,14 +322,16 @@ def write_doc(rows, comparisons, total: float) -> None:
             "",
             "Problem 4's spec says `option conjunction = active`: & is the min over the terms whose timing gate "
             "is open (docs/semantics.md section 5). With the thesis's literal min of (4-17) (`--conjunction "
-            f"literal`) the same settings reach only {np.mean([r['success'] for r in p4['P4-literal']]):.2f}: the "
-            "gated term of the target that is not active is 0, so the min is never positive and arriving at a "
-            "target earns nothing over waiting elsewhere without psi. As shipped: "
-            f"{np.mean([r['success'] for r in p4['P4']]):.2f}; {how('P4')}. With `--conjunction literal`: "
+            f"literal`) and its flat reward, the same settings reach only "
+            f"{np.mean([r['success'] for r in p4['P4-literal']]):.2f}: the gated term of the target that is not "
+            "active is 0, so the min is never positive and arriving at a target earns nothing over waiting "
+            "elsewhere without psi. With the active conjunction: `shaped` "
+            f"{np.mean([r['success'] for r in p4['P4']]):.2f}, {how('P4')}; `net` "
+            f"{np.mean([r['success'] for r in p4['P4-net']]):.2f}, {how('P4-net')}. With `--conjunction literal`: "
             f"{how('P4-literal')}.",
         ]
-        parked = fails["P4"]["visits 0"] + fails["P4"]["visits 1"]
-        if parked > total["P4"] / 2:
+        parked = sum(fails[k]["visits 0"] + fails[k]["visits 1"] for k in ("P4", "P4-net"))
+        if parked > (total["P4"] + total["P4-net"]) / 2:
             lines[-1] += (
                 " Most failed runs park: they hold the pendulum at a target, or near one, for the rest of the "
                 "trial. The reward of `G F` pays the active target's proposition on every step, so parking away "
