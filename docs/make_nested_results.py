@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from results_stats import interval  # noqa: E402  (docs/, the script's own folder)
+from results_stats import interval, machine  # noqa: E402  (docs/, the script's own folder)
 
 from mitlc.fileio import atomic_write, write_block  # noqa: E402
 from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
@@ -45,6 +45,7 @@ RUNS, SEEDS = 30, (0, 1, 2)
 CLOCKS = ("standard", "trial")
 FIGURES = ROOT / "docs" / "figures"
 BEGIN, END = "<!-- nested:begin -->", "<!-- nested:end -->"
+README_BEGIN, README_END = BEGIN, END  # README.md's table, between the same markers
 AFTER_S = 1.5  # chattering is measured after this time
 
 SPECS = [  # key, spec, trials, target, what it shows
@@ -178,6 +179,37 @@ def main() -> None:
     block = "\n".join(lines) + "\n"
     atomic_write(FIGURES / "nested.json", json.dumps(data, indent=1) + "\n")
     write_block(ROOT / "docs" / "results.md", BEGIN, END, block)
+    write_readme(data, COMMAND.format(jobs=args.jobs))
+
+
+README_ROWS = {  # key: the README's short words
+    "N1": "reach in 2 s, stay, two obstacles",
+    "N2": "up in 1.5 s, hold slowly",
+    "N3": "bounded response",
+    "N4": "F[a,b] under G",
+}
+
+
+def write_readme(data: dict, command: str) -> None:
+    """README's table of the nested-timing specs: mean success and interval under both clocks."""
+    from mitlc.spec.parse import load_spec
+
+    rows = [
+        README_BEGIN,
+        "| spec | formula | standard clock | trial clock |",
+        "| --- | --- | ---: | ---: |",
+    ]
+    for key, spec_file, *_ in SPECS:
+        entry = data["specs"][key]
+        cells = ["{:.2f} ± {:.2f}".format(*interval(entry[clock]["success"])) for clock in CLOCKS]
+        formula = load_spec(ROOT / "specs" / "pendulum" / spec_file).formula
+        rows.append(f"| {key} {README_ROWS.get(key, '')} | `{formula}` | {cells[0]} | {cells[1]} |")
+    rows += [
+        "",
+        f"{data['runs']} runs x {len(data['seeds'])} seeds, `{command}` ({data['minutes']:.1f} min on {machine()}).",
+        README_END,
+    ]
+    write_block(ROOT / "README.md", README_BEGIN, README_END, "\n".join(rows) + "\n")
 
 
 def _figure(n2: dict) -> None:
