@@ -25,11 +25,10 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import functools  # noqa: E402
+import hashlib  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -37,7 +36,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from results_stats import interval, machine  # noqa: E402  (docs/, the script's own folder)
+from results_stats import code_digest, interval, machine, run_cached  # noqa: E402  (docs/, the script's own folder)
 
 from mitlc.fileio import atomic_write, write_block  # noqa: E402
 
@@ -135,25 +134,11 @@ def train(job: tuple) -> dict:
 
 def _job_file(job: tuple) -> str:
     """A cached training's file name: the job and a digest of the code that trains it."""
-    import hashlib
-
     import mitlc
 
     key, _, _, trials, design, seed, runs = job
-    digest = hashlib.sha256(repr((job, mitlc.__version__, _code_digest())).encode()).hexdigest()[:12]
+    digest = hashlib.sha256(repr((job, mitlc.__version__, code_digest(__file__))).encode()).hexdigest()[:12]
     return f"{key}-{design}-s{seed}-r{runs}-t{trials}-{digest}.json"
-
-
-@functools.cache
-def _code_digest() -> str:
-    """The package's source, hashed: a cached result is used only by the code that made it."""
-    import hashlib
-
-    h = hashlib.sha256()
-    for path in sorted((ROOT / "mitlc").rglob("*.py")):
-        h.update(path.read_bytes())
-    h.update(Path(__file__).read_bytes())
-    return h.hexdigest()
 
 
 def what_of(key: str) -> str:
@@ -209,27 +194,13 @@ def main() -> None:
     # each finished training is kept (runs/benchmarks-cache, keyed by the job and the code's version),
     # so a run that stops is resumed by running the same command again
     cache = None if args.quick else ROOT / "runs" / "benchmarks-cache"
-    done: dict[int, dict] = {}
-    if cache is not None:
-        cache.mkdir(parents=True, exist_ok=True)
-        for i, job in enumerate(jobs):
-            f = cache / _job_file(job)
-            if f.is_file():
-                done[i] = json.loads(f.read_text(encoding="utf-8"))
-    todo = [i for i in range(len(jobs)) if i not in done]
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for i, r in zip(todo, pool.map(train, [jobs[i] for i in todo]), strict=True):
-            print(f"{r['job']}: success {r['success']:.2f} ({r['wall_s']:.0f} s)", flush=True)
-            done[i] = r
-            if cache is not None:
-                atomic_write(cache / _job_file(jobs[i]), json.dumps(r) + "\n")
-    results = [done[i] for i in range(len(jobs))]
+    results, kept = run_cached(train, jobs, args.jobs, cache, _job_file)
     minutes = (time.perf_counter() - t0) / 60
     data: dict = {
         "command": command,
         "minutes": round(minutes, 1),
         "machine": machine("numba"),
-        "resumed": len(jobs) - len(todo),
+        "resumed": kept,
         "quick": args.quick,
         "runs": runs,
         "seeds": seeds,
