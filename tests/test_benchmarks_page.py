@@ -45,12 +45,20 @@ def test_cart_section_ranks_fixed_controllers() -> None:
     """The cart's section: both compiled rewards pay the braking controller, which the monitor accepts,
     more than standing still, and driving into the stop least; pushing left earns what standing still
     earns under net (every step outside the goal pays -1 until F[0,2]'s window closes: 40 steps of -1)."""
+    import mitlc.plants.user as U
+    from mitlc.plants import PLANTS
+
     sys.path.insert(0, str(ROOT / "docs"))
+    before, sources = dict(PLANTS), list(U.SOURCES)
     try:
         import make_benchmarks
-    finally:
+
+        lines = make_benchmarks._cart_section("examples/cart/cart_small_goal.mitl")
+    finally:  # the cart plant it loads is this test's only (test_user_plants.py asks for it unknown)
         sys.path.remove(str(ROOT / "docs"))
-    lines = make_benchmarks._cart_section("examples/cart/cart_small_goal.mitl")
+        PLANTS.clear()
+        PLANTS.update(before)
+        U.SOURCES[:] = sources
     rows = {}
     for ln in lines:
         cells = [c.strip() for c in ln.strip("|").split("|")]
