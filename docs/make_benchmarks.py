@@ -299,15 +299,21 @@ def _cart_section(spec_file: str) -> list[str]:
     load_plants(str(ROOT / CART_PLANT))
     spec = load_spec(ROOT / spec_file)
     gamma = SacpnSettings().gamma
+
+    class Fixed(Sacpn):
+        """SACPN's rollout with a fixed control law in place of the learned policy."""
+
+        law = staticmethod(lambda x: np.zeros(len(x)))
+
+        def policy(self, x, code, xi=None):  # type: ignore[override]
+            return np.clip(self.law(x), -self.u_max, self.u_max)
+
     table = {}
     for design in ("net", "shaped"):
+        rs = compile_spec(spec, CompileOptions.from_spec(spec, reward=design))
         for name, law in CART_CONTROLLERS:
-
-            class Fixed(Sacpn):
-                def policy(self, x, code, xi=None, law=law):  # type: ignore[override]
-                    return np.clip(law(x), -self.u_max, self.u_max)
-
-            agent = Fixed(compile_spec(spec, CompileOptions.from_spec(spec, reward=design)), runs=10, seed=0)
+            agent = Fixed(rs, runs=10, seed=0)
+            agent.law = law
             ro = agent.rollout(agent.evaluation_states())
             disc = (ro.rewards * gamma ** np.arange(ro.rewards.shape[1])).sum(axis=1).mean()
             ok = monitor(spec, ro.states, ro.dt).satisfied.mean()
