@@ -1,12 +1,13 @@
 """Run the thesis's five problems and write docs/results.md with its figures.
 
-For every problem: 30 runs for each of five seeds with the shipped spec, the reward design the
-table names (``option reward``; the spec's own where it names none) and the default settings;
-success by the monitor on each run's final greedy rollout, as the mean over the seeds with its
-95 % interval, the final mean return and the wall time; then the comparisons on seed 0 (update
-masking M_k vs M_k+1, the anti-wind-up, problem 4's conjunction).
+For every problem: 30 runs for each of five seeds with the shipped spec, the options its row
+names (the spec's own where it names none) and one set of settings for all (SETTINGS: the
+defaults but for the RBF width; a P4 row with the default width beside it); success by the
+monitor on each run's final greedy rollout, as the mean over the seeds with its 95 % interval,
+the final mean return and the wall time; then the comparisons on seed 0 (update masking M_k vs
+M_k+1, the anti-wind-up, problem 4's conjunction).
 
-    python docs/make_results.py            # about 20 minutes on 2 cores
+    python docs/make_results.py            # about 11 minutes on 2 cores
     python docs/make_results.py --readme   # README's sentence again, from docs/figures/results.json
 
 Figures go to docs/figures/ (learning_<p>.png, rollout_<p>.png, masking.png).
@@ -201,7 +202,7 @@ def main() -> None:
             {k: v for k, v in r.items() if k in ("success", "final_return", "wall_s", "max_abs_xi")} for r in per_seed
         ]
         for entry in raw[key]:
-            entry["design"] = options.get("reward") or per_seed[0]["spec"].option("reward")
+            entry["design"] = design_of(options, per_seed[0])
             entry["options"] = options
         if key.startswith("P4"):
             for r, entry in zip(per_seed, raw[key], strict=True):
@@ -245,6 +246,11 @@ def main() -> None:
 
 
 README_BEGIN, README_END = "<!-- results:begin -->", "<!-- results:end -->"
+
+
+def design_of(options: dict, r: dict) -> str:
+    """A row's reward design: its own option, else its spec's."""
+    return options.get("reward") or r["spec"].option("reward")
 
 
 def flags(options: dict) -> str:
@@ -322,7 +328,7 @@ def write_doc(rows, comparisons, total: float) -> None:
         if m < target:
             missed.append((key, m, target))
         flag = f", {flags(options)}" if flags(options) else ""
-        design = options.get("reward") or load_spec(ROOT / "specs" / "pendulum" / spec_file).option("reward")
+        design = design_of(options, per_seed[0])
         lines.append(
             f"| {key} (`{spec_file}`{flag}) | `{design}` | {trials} | {target:.2f} | "
             f"{' / '.join(f'{v:.2f}' for v in succ)} | {cell} | "
