@@ -73,7 +73,7 @@ def expected_net(rs):
 @pytest.mark.parametrize("violations", VIOLATIONS)
 @pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
 def test_pnml_read_back_by_pm4py(spec_path: Path, violations: str, tmp_path: Path) -> None:
-    pm4py = pytest.importorskip("pm4py", reason="pm4py (test-only PNML reader) is not installed: pip install '.[test]'")
+    pm4py = pytest.importorskip("pm4py", reason="pm4py (test-only PNML reader) is not installed: pip install '.[test-extra]'")
     from pm4py.util.constants import PLACE_NAME_TAG
 
     spec = load_spec(spec_path)
@@ -106,7 +106,7 @@ def test_pnml_read_back_by_pm4py(spec_path: Path, violations: str, tmp_path: Pat
 
 def test_pnml_of_problem_2_by_hand(tmp_path: Path) -> None:
     """The region net C-2: three places, a transition between every two of them."""
-    pm4py = pytest.importorskip("pm4py", reason="pm4py is not installed")
+    pm4py = pytest.importorskip("pm4py", reason="pm4py is not installed: pip install '.[test-extra]'")
     from pm4py.util.constants import PLACE_NAME_TAG
 
     rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / "p2_avoid.mitl"))

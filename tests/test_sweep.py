@@ -365,7 +365,7 @@ def _records_by_key(out: Path) -> dict:
 
 
 def test_local_and_ray_give_identical_metrics(short_spec, tmp_path):
-    ray = pytest.importorskip("ray", reason="Ray is not installed: pip install 'mitlc[ray]' to run this test")
+    ray = pytest.importorskip("ray", reason="Ray is not installed: pip install '.[test-extra]' to run this test")
     plan = plan_sweep(load_spec(short_spec), GRID_2X2, [0], runs=2, trials=4)
     local = run_sweep(plan, tmp_path / "local", LocalBackend(workers=2))
     assert ray.is_initialized() is False
@@ -386,7 +386,7 @@ def test_local_and_ray_give_identical_metrics(short_spec, tmp_path):
 
 
 def test_ray_address_joins_a_running_cluster(short_spec, tmp_path):
-    ray = pytest.importorskip("ray", reason="Ray is not installed: pip install 'mitlc[ray]' to run this test")
+    ray = pytest.importorskip("ray", reason="Ray is not installed: pip install '.[test-extra]' to run this test")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="WARNING")
     try:
         address = ray.get_runtime_context().gcs_address
