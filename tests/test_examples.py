@@ -1,6 +1,5 @@
 """Every example in examples/ runs (train_sb3.py where Stable-Baselines3 and PyTorch are installed, as in CI), and the
-documentation's examples are real: docs/python.md as doctests, docs/commands/compile.md
-by running each command again."""
+documentation's examples are real: docs/python.md as doctests (the pages' commands: test_docs_pages.py)."""
 
 from __future__ import annotations
 
@@ -231,54 +230,6 @@ def test_monitor_md_examples_run(monkeypatch) -> None:
     monkeypatch.chdir(ROOT)
     result = _doctest_page("monitor.md")
     assert result.failed == 0 and result.attempted >= 5
-
-
-def console_blocks(markdown: str) -> list[list[tuple[str, str]]]:
-    """The ``console`` blocks of a page: per block, (command, expected output) pairs."""
-    blocks, current, in_block = [], None, False
-    for line in markdown.splitlines():
-        if line.startswith("```console"):
-            current, in_block = [], True
-        elif line.startswith("```") and in_block:
-            blocks.append(current)
-            in_block = False
-        elif in_block and line.startswith("$ "):
-            current.append((line[2:], ""))
-        elif in_block:
-            cmd, out = current[-1]
-            current[-1] = (cmd, out + line + "\n")
-    return blocks
-
-
-def test_compile_md_shows_real_output(tmp_path: Path) -> None:
-    """Each command of docs/commands/compile.md, run again in a scratch directory, prints
-    what the page shows.  If this fails after a deliberate change, run the command from
-    the repository root and paste its output into the page."""
-    (tmp_path / "specs").symlink_to(ROOT / "specs")
-    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
-    blocks = console_blocks((ROOT / "docs" / "commands" / "compile.md").read_text(encoding="utf-8"))
-    commands = [pair for block in blocks for pair in block]
-    assert len(commands) >= 10
-    formats = set()
-    for cmd, expected in commands:
-        if not HAS_DOT and ("--format svg" in cmd or "--format png -o" in cmd):
-            continue
-        r = subprocess.run(
-            ["bash", "-c", cmd],
-            cwd=tmp_path,
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-            timeout=60,
-        )
-        got = r.stdout if r.stdout.endswith("\n") or not r.stdout else r.stdout + "\n"
-        assert got == expected, f"docs/commands/compile.md is out of date for: {cmd}"
-        formats |= {part.split()[0] for part in cmd.split("--format ")[1:]}
-    assert formats >= ({"svg", "png"} if HAS_DOT else set()) | {"json", "dot", "pnml"}
-    if HAS_DOT:
-        assert (tmp_path / "p1_swing_up.svg").read_text().lstrip().startswith(("<?xml", "<svg"))
-        assert (tmp_path / "p2_avoid.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 # ------------------------------------------------------------------ docs/architecture.md

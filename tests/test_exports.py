@@ -73,7 +73,7 @@ def expected_net(rs):
 @pytest.mark.parametrize("violations", VIOLATIONS)
 @pytest.mark.parametrize("spec_path", SPECS, ids=IDS)
 def test_pnml_read_back_by_pm4py(spec_path: Path, violations: str, tmp_path: Path) -> None:
-    pm4py = pytest.importorskip("pm4py", reason="pm4py (test-only PNML reader) is not installed: pip install '.[test-extra]'")
+    pm4py = pytest.importorskip("pm4py", reason="pm4py (the PNML reader) is not installed: pip install '.[test-extra]'")
     from pm4py.util.constants import PLACE_NAME_TAG
 
     spec = load_spec(spec_path)
