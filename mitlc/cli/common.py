@@ -69,7 +69,7 @@ def plant_file_option(fn: Callable[..., Any]) -> Callable[..., Any]:
         help="Your own plant: a Python file (every Plant in it) or module:attribute (a Plant, a list of "
         "them, or a function returning one); repeat for more. Installed packages add plants through "
         "the 'mitlc.plants' entry point; a spec's 'plant gym:ID' names any Gymnasium environment. "
-        "mitlc plants lists them (docs/plants.md).",
+        "mitlc plants lists them (mitlc docs plants).",
     )(fn)
 
 
@@ -81,13 +81,13 @@ def compile_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     helps = {
         "conjunction": "How '&' combines gated terms (overrides the spec's option).",
         "violations": "Track violations of safety and deadline parts: a violation-aware reward (overrides the "
-        "spec's option; docs/semantics.md section 6).",
+        "spec's option; mitlc docs semantics, section 6).",
         "clock": "standard: nested intervals count from their obligation's start (MITL); trial: every "
         "interval on the trial clock, the thesis's reading (overrides the spec's option).",
         "reward": "net: Table 4-2's reward, each proposition +1 / -1; graded: each proposition's robustness over "
         "the state bounds, clipped to [-1, 1]; shaped: the mean of the two; sparse, robustness, "
         "robustness-window: the field's rewards, paid by the monitor (overrides the spec's option; "
-        "docs/semantics.md).",
+        "mitlc docs semantics).",
     }
     for name in reversed(list(helps)):
         fn = click.option(f"--{name}", type=click.Choice(OPTIONS[name]), default=None, help=helps[name])(fn)

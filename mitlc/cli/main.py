@@ -34,6 +34,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "compose_cmd",
         "Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3).",
     ),
+    "docs": (
+        "docs",
+        "docs",
+        "List the documentation pages, or print the one called PAGE (e.g. semantics, commands/train).",
+    ),
     "plants": ("plants", "plants", "List the plants a spec's 'plant NAME' line can name."),
     "simulate": (
         "train",

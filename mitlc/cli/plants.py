@@ -13,11 +13,13 @@ __all__ = ["plants"]
 @plant_file_option
 @handle_errors
 def plants() -> None:
-    """List the plants a spec's 'plant NAME' line can name: mitlc's own, those of installed packages
-    (entry point group 'mitlc.plants') and those of --plant-file; for each its state variables with
+    """List the plants a spec's 'plant NAME' line can name.
+
+    mitlc's own, those of installed packages (entry point group 'mitlc.plants') and those of
+    --plant-file; for each its state variables with
     their bounds (angles wrap), its parameters with their defaults and its default spec. Any
     Gymnasium environment is a plant too: 'plant gym:ID' with 'state' lines mapping its observation
-    (docs/plants.md)."""
+    (mitlc docs plants)."""
     from mitlc.plants.base import PLANTS
     from mitlc.plants.user import discover
 

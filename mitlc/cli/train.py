@@ -239,7 +239,7 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     multiple=True,
     metavar="NAME=VALUE",
     help="Any trainer setting (repeat), e.g. --set alpha_a=0.08 --set rbf=10x10x5: SacpnSettings "
-    "for a formula spec, HyrlSettings for a 'require' spec (docs/training.md, docs/hyrl.md).",
+    "for a formula spec, HyrlSettings for a 'require' spec (mitlc docs training, mitlc docs hyrl).",
 )
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option(

@@ -673,7 +673,7 @@ def _parse_spec(text: str, path: str | None) -> Spec:
                     line=tok.line,
                     column=tok.column,
                     hint="a plant of your own: --plant-file FILE.py (or module:attribute), or an installed "
-                    "package's 'mitlc.plants' entry point; mitlc plants lists the known ones (docs/plants.md)",
+                    "package's 'mitlc.plants' entry point; mitlc plants lists the known ones (mitlc docs plants)",
                 )
             plant_name = name
             for ptok, value in params:
