@@ -251,7 +251,12 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     help="Replace the checkpoint params.npz in --out this often while training (0: only at the end), "
     "so that a killed training resumes from it (--resume).",
 )
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@click.option(
+    "-q",
+    "--quiet",
+    is_flag=True,
+    help="No progress on stderr (a bar on a terminal, else a line per 5 % of the trials).",
+)
 @plant_file_option
 @handle_errors
 def train(
@@ -372,27 +377,18 @@ def _read_json(path: Path) -> dict:
 
 
 def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots) -> None:
-    from tqdm import tqdm
+    from mitlc.cli.progress import Progress, compile_notice
 
     out = outset.out
     todo = max(0, trials - agent.trial)
-    bar = tqdm(
-        total=trials,
-        initial=agent.trial,
-        disable=quiet,
-        unit="trial",
-        dynamic_ncols=True,
-        desc=Path(spec.path or "spec").stem,
-    )
+    bar = Progress(trials, agent.trial, desc=Path(spec.path or "spec").stem, quiet=quiet)
 
     start = time.perf_counter()
     saved = [start]
 
     def progress(trial: int, returns: np.ndarray) -> None:
         interrupt.check()
-        recent = _mean(agent.returns[:, -10:])
-        bar.set_postfix_str(f"mean return {recent:8.1f}", refresh=False)
-        bar.update(1)
+        bar.update(f"mean return {_mean(agent.returns[:, -10:]):.1f}")
         now = time.perf_counter()
         if checkpoint_every and now - saved[0] >= checkpoint_every:  # kill -9 loses at most this much
             outset.checkpoint(
@@ -409,7 +405,8 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     failed: TrainingError | None = None
     try:
         interrupt.check()  # a Ctrl-C during start-up that Python dropped
-        agent.train(todo, progress, total=trials)
+        with compile_notice(quiet):
+            agent.train(todo, progress, total=trials)
     except KeyboardInterrupt:
         interrupted = True
     except TrainingError as exc:

@@ -443,8 +443,14 @@ class Sacpn:
         marked_c = np.ascontiguousarray(self._marked_c, dtype=np.int64)
         reward_full = np.ascontiguousarray(tables.reward, dtype=float)
         pen_left = self._pen_left if self._known else np.zeros(self.n_steps + 1)
+        first = [True]
 
         def run() -> np.ndarray:
+            if first[0]:  # numba compiles on the first call: say so where it is not loaded from the cache
+                from mitlc.learn import jitcache
+
+                jitcache.announce(trial)
+                first[0] = False
             s_pen = self.penalty_scale(self.trial)
             reward_tab = reward_full
             if s_pen < 1.0:
