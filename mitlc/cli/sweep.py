@@ -39,7 +39,7 @@ def _list(spec) -> str:
     lines += ["", "compile options (value: allowed values):"]
     lines += [f"  {('option.' + k).ljust(width)}  {spec.option(k):>6}: {', '.join(v)}" for k, v in OPTIONS.items()]
     lines += ["", "trainer settings (SacpnSettings; value):"]
-    defaults = SacpnSettings()
+    defaults = SacpnSettings() if spec.plant is None else SacpnSettings().resolved(spec.plant)  # rbf: this plant's
     meaning = {
         "sigma": ("sigma_frac x u_max", lambda: defaults.sigma_frac * spec.param("u_max")),
         "trial_s": ("the spec's horizon", lambda: spec.horizon if spec.horizon is not None else 3.0),

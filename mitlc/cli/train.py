@@ -72,18 +72,21 @@ def _settings_from_options(base, **opts):
     return dataclasses.replace(base, **values)
 
 
-def _checked(settings, assignments, options):
-    """``settings`` after their own range checks; a failure names the option that set the
-    value (``--sigma``, ... from ``options``, else ``--set``)."""
+def _checked(settings, assignments, options, plant=None):
+    """``settings`` after their own range checks (and resolved for ``plant``: SACPN's
+    default grid); a failure names the option that set the value (``--sigma``, ... from
+    ``options``, else ``--set``)."""
     from mitlc.errors import TrainingError
 
     try:
         settings.check()
+        if plant is not None:
+            settings = settings.resolved(plant)
     except TrainingError as exc:
         name = exc.message.split(" ", 1)[0].strip("'")
         given = {k for k, v in options.items() if v is not None}
         where = f"--{name.replace('_', '-')}" if name in given else "--set" if assignments else "mitlc train"
-        raise InputError(exc.message, file=where) from None
+        raise InputError(exc.message, file=where, hint=exc.hint) from None
     return settings
 
 
@@ -335,6 +338,7 @@ def train(
         _settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
         assignments,
         {"sigma": sigma, "mask": mask, "saturation": saturation, "penalty_ramp": penalty_ramp},
+        spec.plant,
     )
     options = CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward)
     rs = compile_spec(spec, options)
