@@ -229,26 +229,17 @@ def train_hybrid_cli(
 
 
 def _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots) -> dict:
-    from tqdm import tqdm
-
+    from mitlc.cli.progress import Progress
     from mitlc.learn.hyrl_eval import evaluate
     from mitlc.learn.plots import learning_curve, png_bytes
 
     out = outset.out
     done_before = learner.trial
-    bar = tqdm(
-        total=trials,
-        initial=done_before,
-        disable=not progress,
-        unit="trial",
-        dynamic_ncols=True,
-        desc=Path(s.path or "spec").stem,
-    )
+    bar = Progress(trials, done_before, desc=Path(s.path or "spec").stem, quiet=not progress)
 
     def step(trial: int, returns: np.ndarray) -> None:
         interrupt.check()
-        bar.set_postfix_str(f"mean return {learner.returns[:, -10:].mean():8.1f}", refresh=False)
-        bar.update(1)
+        bar.update(f"mean return {learner.returns[:, -10:].mean():.1f}")
 
     interrupted = False
     try:

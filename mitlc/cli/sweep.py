@@ -39,7 +39,7 @@ def _list(spec) -> str:
     lines += ["", "compile options (value: allowed values):"]
     lines += [f"  {('option.' + k).ljust(width)}  {spec.option(k):>6}: {', '.join(v)}" for k, v in OPTIONS.items()]
     lines += ["", "trainer settings (SacpnSettings; value):"]
-    defaults = SacpnSettings()
+    defaults = SacpnSettings() if spec.plant is None else SacpnSettings().resolved(spec.plant)  # rbf: this plant's
     meaning = {
         "sigma": ("sigma_frac x u_max", lambda: defaults.sigma_frac * spec.param("u_max")),
         "trial_s": ("the spec's horizon", lambda: spec.horizon if spec.horizon is not None else 3.0),
@@ -119,7 +119,9 @@ def _list(spec) -> str:
 )
 @click.option("--list", "list_only", is_flag=True, help="Print every grid name with its current value and exit.")
 @click.option("--no-plot", is_flag=True, help="Skip sweep.png.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@click.option(
+    "-q", "--quiet", is_flag=True, help="No progress on stderr (a bar on a terminal, else a line per 5 % of the tasks)."
+)
 @plant_file_option
 @handle_errors
 def sweep(
@@ -142,8 +144,7 @@ def sweep(
 
     SPEC is a .mitl file or the name of a shipped spec (pendulum/p2_avoid; mitlc specs lists them).
     """
-    from tqdm import tqdm
-
+    from mitlc.cli.progress import Progress
     from mitlc.learn.plots import png_bytes
     from mitlc.spec.parse import load_spec
     from mitlc.sweep import (
@@ -190,17 +191,12 @@ def sweep(
             f"{runs} runs x {trials} trials each); {done} already in {out}; running on {engine.describe()}",
             err=True,
         )
-        bar["bar"] = tqdm(
-            total=total, initial=done, disable=quiet, unit="task", dynamic_ncols=True, desc=Path(spec_path).stem
-        )
+        bar["bar"] = Progress(total, done, desc=Path(spec_path).stem, unit="task", quiet=quiet)
 
     def on_result(task, record) -> None:
         shown = " ".join(f"{a.name}={v}" for a, v in zip(plan.axes, task.labels, strict=True))
         rate = record["success_rate"]
-        bar["bar"].set_postfix_str(
-            f"{shown} seed {task.seed}: " + (f"success {rate:.2f}" if rate is not None else "diverged"), refresh=False
-        )
-        bar["bar"].update(1)
+        bar["bar"].update(f"{shown} seed {task.seed}: " + (f"success {rate:.2f}" if rate is not None else "diverged"))
 
     try:
         outcome = run_sweep(plan, out, engine, on_result=on_result, on_start=on_start)

@@ -72,18 +72,21 @@ def _settings_from_options(base, **opts):
     return dataclasses.replace(base, **values)
 
 
-def _checked(settings, assignments, options):
-    """``settings`` after their own range checks; a failure names the option that set the
-    value (``--sigma``, ... from ``options``, else ``--set``)."""
+def _checked(settings, assignments, options, plant=None):
+    """``settings`` after their own range checks (and resolved for ``plant``: SACPN's
+    default grid); a failure names the option that set the value (``--sigma``, ... from
+    ``options``, else ``--set``)."""
     from mitlc.errors import TrainingError
 
     try:
         settings.check()
+        if plant is not None:
+            settings = settings.resolved(plant)
     except TrainingError as exc:
         name = exc.message.split(" ", 1)[0].strip("'")
         given = {k for k, v in options.items() if v is not None}
         where = f"--{name.replace('_', '-')}" if name in given else "--set" if assignments else "mitlc train"
-        raise InputError(exc.message, file=where) from None
+        raise InputError(exc.message, file=where, hint=exc.hint) from None
     return settings
 
 
@@ -251,7 +254,12 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     help="Replace the checkpoint params.npz in --out this often while training (0: only at the end), "
     "so that a killed training resumes from it (--resume).",
 )
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@click.option(
+    "-q",
+    "--quiet",
+    is_flag=True,
+    help="No progress on stderr (a bar on a terminal, else a line per 5 % of the trials).",
+)
 @plant_file_option
 @handle_errors
 def train(
@@ -330,6 +338,7 @@ def train(
         _settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
         assignments,
         {"sigma": sigma, "mask": mask, "saturation": saturation, "penalty_ramp": penalty_ramp},
+        spec.plant,
     )
     options = CompileOptions.from_spec(spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward)
     rs = compile_spec(spec, options)
@@ -372,27 +381,18 @@ def _read_json(path: Path) -> dict:
 
 
 def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots) -> None:
-    from tqdm import tqdm
+    from mitlc.cli.progress import Progress, compile_notice
 
     out = outset.out
     todo = max(0, trials - agent.trial)
-    bar = tqdm(
-        total=trials,
-        initial=agent.trial,
-        disable=quiet,
-        unit="trial",
-        dynamic_ncols=True,
-        desc=Path(spec.path or "spec").stem,
-    )
+    bar = Progress(trials, agent.trial, desc=Path(spec.path or "spec").stem, quiet=quiet)
 
     start = time.perf_counter()
     saved = [start]
 
     def progress(trial: int, returns: np.ndarray) -> None:
         interrupt.check()
-        recent = _mean(agent.returns[:, -10:])
-        bar.set_postfix_str(f"mean return {recent:8.1f}", refresh=False)
-        bar.update(1)
+        bar.update(f"mean return {_mean(agent.returns[:, -10:]):.1f}")
         now = time.perf_counter()
         if checkpoint_every and now - saved[0] >= checkpoint_every:  # kill -9 loses at most this much
             outset.checkpoint(
@@ -409,7 +409,8 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     failed: TrainingError | None = None
     try:
         interrupt.check()  # a Ctrl-C during start-up that Python dropped
-        agent.train(todo, progress, total=trials)
+        with compile_notice(quiet):
+            agent.train(todo, progress, total=trials)
     except KeyboardInterrupt:
         interrupted = True
     except TrainingError as exc:

@@ -29,6 +29,10 @@ width 0.5 used to, in SACPN's former closed form).
 >>> g = RbfFeatures([Axis("q", -1.0, 1.0, 10, warp=(0.0, 0.5)), Axis("qdot", -5.0, 5.0, 10)])
 >>> [round(float(c), 3) for c in g.centres_in(0)[5:]]
 [0.012, 0.111, 0.309, 0.605, 1.0]
+
+SACPN's default grid follows from the plant's number of state variables
+(:func:`default_rbf`): Table 4-4's 10 x 10 for two, and for more about as many
+features in all (100), so that a grid over a plant of many variables stays small.
 """
 
 from __future__ import annotations
@@ -41,7 +45,41 @@ import numpy as np
 from mitlc.errors import TrainingError
 from mitlc.plants import StateVar
 
-__all__ = ["Axis", "RbfFeatures"]
+__all__ = ["Axis", "RbfFeatures", "default_rbf", "RBF_PER_VARIABLE", "RBF_BUDGET"]
+
+RBF_PER_VARIABLE = 10
+"""Centres per variable for one or two state variables (Table 4-4: 10 x 10)."""
+
+RBF_BUDGET = RBF_PER_VARIABLE**2
+"""Features in all that :func:`default_rbf` keeps to for three to six state variables."""
+
+
+def default_rbf(n: int) -> tuple[int, ...]:
+    """SACPN's default RBF grid for a plant of ``n`` state variables.
+
+    One or two variables: :data:`RBF_PER_VARIABLE` centres each (the pendulum's and
+    the mass-damper's 10 x 10 of Table 4-4). Three or more: ``c`` centres each, ``c``
+    the largest count with ``c ** n <= RBF_BUDGET`` (at least 2), then one more centre
+    on the first variables in state order while the product stays within the budget.
+    So up to six variables the grid has at most 100 features; from seven on it is 2
+    per variable (``2 ** n``: 128 for seven).
+
+    >>> [default_rbf(n) for n in (1, 2, 3, 4)]
+    [(10,), (10, 10), (5, 5, 4), (3, 3, 3, 3)]
+    >>> [default_rbf(n) for n in (5, 6, 7)]
+    [(3, 3, 2, 2, 2), (3, 2, 2, 2, 2, 2), (2, 2, 2, 2, 2, 2, 2)]
+    """
+    if n <= 2:
+        return (RBF_PER_VARIABLE,) * n
+    c = 2
+    while (c + 1) ** n <= RBF_BUDGET:
+        c += 1
+    counts = [c] * n
+    for i in range(n):
+        if int(np.prod(counts)) // c * (c + 1) > RBF_BUDGET:
+            break
+        counts[i] = c + 1
+    return tuple(counts)
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,11 @@ Where: ``$MITLC_CACHE_DIR`` if set (empty: no disk cache), else
 mitlc's own and safe to delete. Where the folder cannot be written, or a function's
 graph holds something that cannot be written as source, :func:`load` returns None and
 the caller compiles in memory as before: the same code, the same numbers.
+
+numba compiles a kernel on its first call; :func:`announce`, called just before it, tells
+the function set by :func:`set_notice` (the command line's: one line on stderr) when that
+call is going to compile rather than load from the cache, so that a first training does
+not look hung.
 """
 
 from __future__ import annotations
@@ -36,10 +41,11 @@ from typing import Any
 
 from mitlc.fileio import cache_root
 
-__all__ = ["cache_dir", "module_source", "load"]
+__all__ = ["cache_dir", "module_source", "load", "set_notice", "will_compile", "announce"]
 
 JIT_OPTIONS = "fastmath=False, error_model='numpy', nogil=True, cache=True"
 _LOADED: dict[str, types.ModuleType] = {}
+_NOTICE: Callable[[str], None] | None = None
 
 
 class Unwritable(Exception):
@@ -245,3 +251,47 @@ def load(fn: Callable) -> Callable | None:
         spec.loader.exec_module(module)
         _LOADED[digest] = module
     return getattr(module, name)
+
+
+# ---------------------------------------------------------------- telling a compile apart from a load
+
+
+def set_notice(callback: Callable[[str], None] | None) -> Callable[[str], None] | None:
+    """Have ``callback(line)`` told when a kernel is about to be compiled (:func:`announce`),
+    None: nobody (the default). Returns the callback set before."""
+    global _NOTICE
+    before, _NOTICE = _NOTICE, callback
+    return before
+
+
+def will_compile(fn: Any) -> bool:
+    """Whether calling ``fn`` compiles it: a numba dispatcher with no compiled signature in
+    this process and, where it is cached on disk, no index file there yet. False for
+    anything else (a plain-Python kernel)."""
+    signatures = getattr(fn, "signatures", None)
+    if signatures is None or signatures:
+        return False
+    index = getattr(getattr(getattr(fn, "_cache", None), "_cache_file", None), "_index_path", None)
+    return not (isinstance(index, str) and os.path.exists(index))
+
+
+def _home(path: Path) -> str:
+    try:
+        return str(Path("~") / path.relative_to(Path.home()))
+    except (ValueError, RuntimeError):
+        return str(path)
+
+
+def announce(fn: Any) -> None:
+    """Tell the :func:`set_notice` callback, if any, that the next call of ``fn`` compiles it."""
+    if _NOTICE is None or not will_compile(fn):
+        return
+    index = getattr(getattr(getattr(fn, "_cache", None), "_cache_file", None), "_index_path", None)
+    folder = cache_dir()
+    if isinstance(index, str) and folder is not None:
+        where = f"once per plant and propositions: cached in {_home(folder)}"
+    elif folder is None:
+        where = "in every process: MITLC_CACHE_DIR is empty, the disk cache is off"
+    else:
+        where = "in every process: this kernel cannot be cached on disk"
+    _NOTICE(f"compiling the training kernel (up to ~10 s, {where})")

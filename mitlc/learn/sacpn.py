@@ -53,7 +53,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Protocol
 
@@ -63,7 +63,7 @@ from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import npz_bytes, save_npz
 from mitlc.learn.checkpoint import load_state, read_checkpoint
 from mitlc.learn.checkpoint import read_meta as _read_meta
-from mitlc.learn.features import RbfFeatures
+from mitlc.learn.features import RbfFeatures, default_rbf
 from mitlc.learn.runtime import NetRuntime
 from mitlc.learn.settings import (
     Settings,
@@ -75,6 +75,7 @@ from mitlc.learn.settings import (
 )
 from mitlc.limits import MAX_LEARNER_BYTES, check_steps
 from mitlc.petri.compile import RewardSystem
+from mitlc.plants.base import Plant
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
 
@@ -99,8 +100,11 @@ class SacpnSettings(Settings):
     alpha_a: float = 0.1
     """Actor learning rate (Table 4-4)."""
 
-    rbf: tuple[int, ...] = (10, 10)
-    """RBF centres per state variable (Table 4-4: 10 x 10), in the plant's state order."""
+    rbf: tuple[int, ...] | None = None
+    """RBF centres per state variable, in the plant's state order; ``None`` (the default):
+    from the plant's number of state variables (:func:`~mitlc.learn.features.default_rbf`):
+    10 x 10 for two (Table 4-4), about 100 features in all for three to six, 2 per
+    variable from seven on. The learner's :attr:`Sacpn.settings` hold the grid it took."""
 
     rbf_width: float = 1.0
     """Gaussian width as a multiple of the centre spacing (thesis silent)."""
@@ -158,6 +162,30 @@ class SacpnSettings(Settings):
     (environments, user plants without ``kernel_step``, timed obligations, untabulated
     rewards) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
+    def resolved(self, plant: Plant) -> SacpnSettings:
+        """These settings with what follows from ``plant`` filled in: the default ``rbf``
+        grid (:func:`~mitlc.learn.features.default_rbf` of its number of state variables);
+        a grid given must have one count per state variable.
+
+        >>> from mitlc.plants import PLANTS
+        >>> SacpnSettings().resolved(PLANTS["pendulum"]).rbf
+        (10, 10)
+        """
+        n = len(plant.state)
+        if self.rbf is not None:
+            if len(self.rbf) != n:
+                raise TrainingError(f"rbf has {len(self.rbf)} entries, the plant has {n} state variables")
+            return self
+        rbf = default_rbf(n)
+        try:
+            check_grid(rbf)
+        except TrainingError as exc:
+            raise TrainingError(
+                f"{exc.message}: the default grid for {n} state variables",
+                hint="set rbf with fewer centres (1 on some variables: --set rbf=2x2x1x...)",
+            ) from None
+        return replace(self, rbf=rbf)
+
     def check(self) -> None:
         if self.mask not in ("current", "next"):
             raise TrainingError(f"unknown mask '{self.mask}' (current or next)")
@@ -170,7 +198,8 @@ class SacpnSettings(Settings):
         check_fraction(self, ("gamma", "lam", "penalty_ramp"))
         check_non_negative(self, ("alpha_c", "alpha_a", "sigma_frac"))
         check_positive(self, ("rbf_width",))
-        check_grid(self.rbf)
+        if self.rbf is not None:
+            check_grid(self.rbf)
         seen = set()
         for entry in self.feature_bounds:
             if len(entry) != 3:
@@ -277,6 +306,7 @@ class Sacpn:
         plant = spec.plant
         if plant is None:
             raise TrainingError("the spec names no plant (add 'plant NAME' to train on it)")
+        settings = settings.resolved(plant)  # the grid taken is the one recorded
         self.rs, self.spec, self.plant, self.settings = rs, spec, plant, settings
         self.runs, self.seed = int(runs), int(seed)
         self.params = plant.params({k: v for k, v in spec.plant_params})
@@ -340,6 +370,7 @@ class Sacpn:
                     f"(its variables: {', '.join(plant.state_names)})"
                 )
         bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
+        assert settings.rbf is not None  # resolved
         self.features = RbfFeatures.for_state(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
         need = 4 * self.runs * self.n_places * self.n_features * 8  # actor, critic, trace, scratch
@@ -443,8 +474,14 @@ class Sacpn:
         marked_c = np.ascontiguousarray(self._marked_c, dtype=np.int64)
         reward_full = np.ascontiguousarray(tables.reward, dtype=float)
         pen_left = self._pen_left if self._known else np.zeros(self.n_steps + 1)
+        first = [True]
 
         def run() -> np.ndarray:
+            if first[0]:  # numba compiles on the first call: say so where it is not loaded from the cache
+                from mitlc.learn import jitcache
+
+                jitcache.announce(trial)
+                first[0] = False
             s_pen = self.penalty_scale(self.trial)
             reward_tab = reward_full
             if s_pen < 1.0:

@@ -171,7 +171,7 @@ def _fixed_counts(n: int) -> Callable[[str], tuple[int, ...]]:
 
 def _optional(parse: Callable[[str], Any]) -> Callable[[str], Any]:
     def p(text: str) -> Any:
-        return None if text.lower() in ("none", "default") else parse(text)
+        return None if text.lower() in ("none", "default", "auto") else parse(text)
 
     return p
 

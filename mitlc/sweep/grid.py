@@ -364,7 +364,8 @@ def plan_sweep(spec: Spec, grid: Sequence[str], seeds: Sequence[int], runs: int,
         overrides: dict[str, dict[str, Any]] = {"setting": {}, "weight": {}, "option": {}}
         for axis, i in zip(axes, combo, strict=True):
             overrides[axis.kind][axis.key] = axis.values[i]
-        settings = dataclasses.replace(SacpnSettings(), **overrides["setting"]).to_dict()
+        chosen = dataclasses.replace(SacpnSettings(), **overrides["setting"])
+        settings = (chosen if spec.plant is None else chosen.resolved(spec.plant)).to_dict()  # rbf: this plant's
         resolved = {
             "settings": settings,
             "weights": {**base_weights, **{k: float(v) for k, v in overrides["weight"].items()}},
