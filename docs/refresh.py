@@ -16,7 +16,8 @@ an ordinary ``csv`` block)::
 
 The commands of a page run in order, in one scratch folder that holds the files the
 page showed before them and links ``specs/`` and ``examples/``, with stdout and stderr
-together as a terminal shows them. Run from anywhere:
+together as a terminal shows them once the command is done (progress lines and the
+kernel's one-time compile notice left out). Run from anywhere:
 
     python docs/refresh.py                 # every page in PAGES: rewrite its outputs
     python docs/refresh.py README.md       # one page
@@ -54,6 +55,9 @@ PAGES = (
 
 # What a page may show that depends on the machine: the seconds a training took.
 SECONDS = re.compile(r"\bin \d+(?:\.\d+)? s\b")
+# What a terminal shows only while a command runs, and not on the page: the progress (a bar on a
+# terminal, a line per 5 % in a log: mitlc.cli.progress) and the kernel's one-time compile notice.
+TRANSIENT = re.compile(r"^(?:\S.*: \w+ \d+/\d+ \(\d+%\)(?:, .*)?|compiling the training kernel \(.*\))$")
 FILE_INFO = re.compile(r"^```\S*\s+file=(\S+)\s*$")
 
 
@@ -144,7 +148,7 @@ def run_page(page: Path, skip: tuple[str, ...] = (), folder: Path | None = None)
                 text=True,
                 timeout=900,
             )
-            got = r.stdout if r.stdout.endswith("\n") or not r.stdout else r.stdout + "\n"
+            got = "".join(f"{line}\n" for line in r.stdout.splitlines() if not TRANSIENT.match(line))
             results.append((cmd, got))
             status = r.returncode
     return results

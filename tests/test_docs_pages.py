@@ -54,6 +54,23 @@ def test_seconds_are_all_that_may_differ() -> None:
     assert refresh.normalised("t = 2 s") == "t = 2 s"  # a time inside a verdict is exact
 
 
+def test_progress_is_left_out() -> None:
+    """What mitlc.cli.progress writes to a log, and the compile notice, are not page output."""
+    import io
+
+    from mitlc.cli.progress import Progress
+
+    log = io.StringIO()
+    with Progress(40, desc="p2_short", stream=log) as bar:
+        for _ in range(40):
+            bar.update("mean return -1.0")
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 20 and all(refresh.TRANSIENT.match(line) for line in lines)
+    assert refresh.TRANSIENT.match("compiling the training kernel (up to ~10 s, cached in ~/.cache/mitlc/kernels)")
+    assert not refresh.TRANSIENT.match("8 runs x 300 trials in 3.6 s; final mean return 9.9; results in p1")
+    assert not refresh.TRANSIENT.match("p2.mitl:3:13: error: undefined proposition 'upp'")
+
+
 def test_blocks_read_files_and_commands() -> None:
     page = "x\n```csv file=a.csv\nt,q\n0,1\n```\n```console\n$ cat a.csv\nt,q\n0,1\n$ true\n```\n```\n$ not run\n```\n"
     found = refresh.blocks(page)
