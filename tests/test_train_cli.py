@@ -177,7 +177,10 @@ def test_set_overrides_any_trainer_setting_sacpn_and_hyrl(short_spec, spec_dir, 
 @pytest.mark.parametrize(
     "spec, args, message",
     [
-        ("short", ("--set", "alpha=1"), "--set: error: unknown setting 'alpha' (known: gamma, lam,"),
+        ("short", ("--set", "alpha=1"), "--set: error: unknown setting 'alpha' (did you mean 'alpha_a' or 'alpha_c'?)"),
+        ("short", ("--set", "gama=0.9"), "--set: error: unknown setting 'gama' (did you mean 'gamma'?)"),
+        ("short", ("--set", "zeta=1"), "--set: error: unknown setting 'zeta' (known: gamma, lam,"),
+        ("overshoot", ("--set", "sigmaa=1"), "--set: error: unknown setting 'sigmaa' (did you mean 'sigma'?)"),
         ("short", ("--set", "gamma"), "--set: error: 'gamma' is not NAME=VALUE"),
         ("short", ("--set", "gamma=high"), "--set: error: gamma: 'high' is not a number"),
         ("short", ("--set", "gamma=3"), "--set: error: gamma must be in [0, 1], got 3.0"),
