@@ -32,7 +32,6 @@ import numpy as np
 
 from mitlc.cli import interrupt
 from mitlc.cli.common import atomic_write, handle_errors, output_option, plant_file_option, write_result
-from mitlc.cli.outputs import OutputSet
 from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import json_text
 from mitlc.spec.model import Spec
@@ -193,7 +192,7 @@ def train_hybrid_cli(
     runs: int,
     trials: int,
     seed: int,
-    out: str | Path,
+    out: str | Path | None,
     progress: bool = True,
     settings=None,
     n_init: int = 50,
@@ -204,7 +203,8 @@ def train_hybrid_cli(
     ``metrics.json``, ``params.npz``, ``learning_curve.png`` and ``rollout.png`` to ``out``.
 
     ``trials`` counts all trials, those of a ``resume`` directory's checkpoint
-    included (its spec, runs, seed and settings are used).  Returns the metrics.
+    included (its spec, runs, seed and settings are used); ``out`` None is a new
+    folder ``runs/<spec>_<N>``.  Returns the metrics.
     Ctrl-C stops after the last complete trial, writes everything so far
     (``interrupted: true``) and exits with status 130.
     """
@@ -221,7 +221,9 @@ def train_hybrid_cli(
         if not s.requirements:
             raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
         learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
-    outset = OutputSet(out).open()  # before training: a folder that cannot be written fails now
+    from mitlc.cli.train import output_set
+
+    outset = output_set(None if out is None else Path(out), s).open()  # a folder that cannot be written fails now
     try:
         return _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots)
     finally:

@@ -1,7 +1,8 @@
 """``mitlc train`` and ``mitlc simulate``: thin click commands over :mod:`mitlc.learn.sacpn`.
 
 ``mitlc train --plant pendulum`` trains the plant's default spec (problem 2
-of the thesis) with 30 runs and writes, to ``--out`` (default ``runs/<spec>``):
+of the thesis) with 30 runs and writes, to ``--out`` (default: a new folder
+``runs/<spec>_<N>``, N the next free number):
 
 * ``metrics.json``: ``returns`` (runs x trials), ``success_rate`` (fraction of
   runs whose final greedy rollout satisfies the spec, by :mod:`mitlc.monitor`),
@@ -201,7 +202,8 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     "out_dir",
     type=click.Path(file_okay=False),
     default=None,
-    help="Output directory (default runs/<spec name>, or the --resume directory).",
+    help="Output directory (default: a new runs/<spec name>_<N>, or the --resume directory). A folder "
+    "holding other files, or a training of another spec, is refused.",
 )
 @click.option(
     "--resume",
@@ -293,7 +295,7 @@ def train(
         clock = clock or meta.get("clock")
         reward = reward or meta.get("reward")
         base = SacpnSettings.from_dict(meta["settings"])
-        out = Path(out_dir or resume_dir)
+        out: Path | None = Path(out_dir or resume_dir)
     else:
         if spec_path is None:
             if plant_name is None:
@@ -301,7 +303,7 @@ def train(
             spec_path = str(find_default_spec(plant_name))
         spec = _load(spec_path)
         base = SacpnSettings()
-        out = Path(out_dir or Path("runs") / Path(spec_path).stem)
+        out = Path(out_dir) if out_dir else None  # None: a new runs/<spec>_<N> (output_set)
     if plant_name is not None and spec.plant_name != plant_name:
         raise InputError(f"the spec is for plant '{spec.plant_name}', not '{plant_name}'", file=spec.path)
     for w in spec.warnings:
@@ -344,11 +346,22 @@ def train(
     if meta is not None:
         agent.load(Path(resume_dir) / PARAMS)
         wall_before = _wall_before(Path(resume_dir))
-    outset = OutputSet(out).open()  # before training: a folder that cannot be written fails now
+    outset = output_set(out, spec).open()  # before training: a folder that cannot be written fails now
     try:
         _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots)
     finally:
         outset.close()
+
+
+def output_set(out: Path | None, spec) -> OutputSet:
+    """The output set of a training of ``spec`` into ``out`` (None: a new folder ``runs/<spec>_<N>``);
+    its manifest names the spec."""
+    from mitlc.cli.outputs import spec_record
+
+    record = spec_record(spec)
+    if out is None:
+        return OutputSet.numbered(Path("runs"), Path(spec.path or "spec").stem, record=record)
+    return OutputSet(out, record=record)
 
 
 def _wall_before(folder: Path) -> float:
