@@ -1,5 +1,5 @@
-"""A training folder is used again as it is (issue 28): a default ``--out`` never lands on
-another run, and an occupied ``--out`` of another spec is refused."""
+"""A training folder is used again as it is (issue 28): it remembers its plant file, a default
+``--out`` never lands on another run, and an occupied ``--out`` of another spec is refused."""
 
 from __future__ import annotations
 
@@ -7,11 +7,26 @@ import hashlib
 import json
 from pathlib import Path
 
+import numpy as np
+import pytest
 from click.testing import CliRunner
 
+import mitlc
 from mitlc.cli.main import main
 from mitlc.cli.outputs import read_manifest
+from mitlc.plants import PLANTS
+from mitlc.plants import user as U
 from tests.conftest import P2_SHORT
+
+ROOT = Path(__file__).resolve().parent.parent
+CART = ROOT / "examples" / "cart" / "cart_plant.py"
+RAIL_SPEC = """\
+plant rail_t
+init x in [-0.2, 0.2], v = 0
+horizon 1
+prop there = abs(x - 0.3) < 0.2
+formula F[0,1] G there
+"""
 
 
 def run(*args):
@@ -20,6 +35,94 @@ def run(*args):
 
 def sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
+
+
+@pytest.fixture(autouse=True)
+def _forget_user_plants():
+    before, sources, origins = dict(PLANTS), list(U.SOURCES), dict(U._ORIGINS)
+    yield
+    PLANTS.clear()
+    PLANTS.update(before)
+    U.SOURCES[:] = sources
+    U._ORIGINS.clear()
+    U._ORIGINS.update(origins)
+
+
+# ---------------------------------------------------------------- item 2: the plant
+
+
+def test_a_run_remembers_its_plant_file(tmp_path) -> None:
+    src = tmp_path / "src"
+    src.mkdir()
+    plant_file = src / "rail_plant.py"
+    text = CART.read_text().replace('name="cart"', 'name="rail_t"')
+    plant_file.write_text(text)
+    spec = tmp_path / "rail.mitl"
+    spec.write_text(RAIL_SPEC)
+    out = tmp_path / "run"
+    r = run("train", "--plant-file", plant_file, "--spec", spec, "--runs", 3, "--trials", 4, "--out", out, "-q")
+    assert r.exit_code == 0, r.output
+    copy = out / "plants" / "rail_plant.py"
+    assert copy.read_bytes() == plant_file.read_bytes()
+    manifest = read_manifest(out)
+    assert manifest["plant"] == {
+        "name": "rail_t",
+        "kind": "file",
+        "path": str(plant_file.resolve()),
+        "attr": "",
+        "sha256": sha(plant_file.read_bytes()),
+        "file": "plants/rail_plant.py",
+    }
+    assert manifest["files"]["plants/rail_plant.py"] == sha(plant_file.read_bytes())
+    assert manifest["spec"] == str(spec) and manifest["spec_sha256"] == sha(RAIL_SPEC.encode())
+    before = run("simulate", "--policy", out, "--rollouts", 5)
+    assert before.exit_code == 0, before.output
+
+    # the plant file moved away and the plant forgotten: only the folder knows it now
+    plant_file.rename(src / "elsewhere.py")
+    del PLANTS["rail_t"]
+    assert "unknown plant 'rail_t'" in run("compile", spec).output
+    after = run("simulate", "--policy", out, "--rollouts", 5)
+    assert after.exit_code == 0, after.output
+    assert after.output == before.output  # the same policy on the same plant: the same verdicts, no note
+    verdicts = [line for line in after.output.splitlines() if line.startswith("rollout ")]
+    assert len(verdicts) == 5
+    k = sum("satisfied" in line for line in verdicts)
+    assert f"{k}/5 rollouts satisfy F[0,1] G there" in after.output.splitlines()
+
+    del PLANTS["rail_t"]
+    r = run("train", "--resume", out, "--trials", 7, "-q", "--no-plots")
+    assert r.exit_code == 0, r.output
+    assert json.loads((out / "metrics.json").read_text())["trials"] == 7
+    assert read_manifest(out)["plant"]["path"] == str(plant_file.resolve())  # still the original's path
+    assert copy.read_bytes() == text.encode() and "plants/rail_plant.py" in read_manifest(out)["files"]
+
+    del PLANTS["rail_t"]
+    pol = mitlc.load_policy(out)
+    assert pol.spec.plant_name == "rail_t" and pol.runs == 3
+    x = np.array([[0.0, 0.0], [0.1, 0.0]])
+    assert pol.act(x, pol.reset(x)).shape == (2,)
+
+    # the original back, but edited since: the run's copy is what it was trained with, and a note says so
+    (src / "elsewhere.py").rename(plant_file)
+    plant_file.write_text(text.replace('(u - p["b"] * v)', '(2 * u - p["b"] * v)'))
+    del PLANTS["rail_t"]
+    r = run("simulate", "--policy", out, "--rollouts", 1)
+    assert r.exit_code == 0, r.output
+    assert f"note: {plant_file.resolve()} changed since the training; using the run's copy {copy}" in r.output
+    del PLANTS["rail_t"]
+    with pytest.warns(UserWarning, match="changed since the training"):
+        mitlc.load_policy(out)
+
+    # a copy changed after the training is refused, not run
+    del PLANTS["rail_t"]
+    copy.write_text("raise SystemExit('ran the changed copy')\n")
+    r = run("simulate", "--policy", out)
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert r.output.strip() == (
+        f"{out / 'params.npz'}: error: the run's copy of its plant file plants/rail_plant.py was changed after "
+        "the training (its SHA-256 differs)"
+    )
 
 
 # ---------------------------------------------------------------- item 3: nothing overwritten

@@ -354,6 +354,8 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
 
 
 def _load_learners(policy_dirs: Sequence[str]) -> list:
+    """The HyRL learners of ``policy_dirs``, each folder's plant restored first (a plant file's copy)."""
+    from mitlc.learn.checkpoint import read_meta, restore_plant
     from mitlc.learn.hyrl import load_learner
 
     learners = []
@@ -361,6 +363,8 @@ def _load_learners(policy_dirs: Sequence[str]) -> list:
         ckpt = Path(d) / PARAMS
         if not ckpt.is_file():
             raise InputError(f"no {PARAMS} in {d} (train first with 'mitlc train --out DIR')", file=str(d))
+        for note in restore_plant(read_meta(ckpt), ckpt):
+            click.echo(note, err=True)
         learners.append(load_learner(ckpt))
     return learners
 
@@ -465,8 +469,8 @@ def compose_cmd(
     from mitlc.learn.plots import png_bytes
     from mitlc.spec.parse import load_spec
 
+    learners = _load_learners(policy_dirs)  # first: their folders make a plant file's plant known to SPEC
     s = load_spec(spec)
-    learners = _load_learners(policy_dirs)
     ctl = compose(s, learners)
     for mode, src in ctl.describe().items():
         click.echo(f"mode {mode:<5} policy {src}")

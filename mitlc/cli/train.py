@@ -9,7 +9,11 @@ of the thesis) with 30 runs and writes, to ``--out`` (default: a new folder
   ``satisfied`` and ``robustness`` per run, ``wall_s``, the settings;
 * ``params.npz``: the learner's full state (parameters, random generator
   states, trial counter), also the checkpoint ``--resume`` continues from;
-* ``learning_curve.png`` and ``rollout.png``.
+* ``learning_curve.png`` and ``rollout.png``;
+* ``plants/FILE.py``: a copy of the plant file the spec's plant came from
+  (``--plant-file``), so that the folder is used again without it;
+* ``manifest.json``: the set's files with their SHA-256, the spec and its plant
+  (:mod:`mitlc.cli.outputs`).
 
 Every file is written atomically.  Ctrl-C stops after rolling back to the last
 complete trial and writes the checkpoint; ``--resume DIR`` then continues to
@@ -288,6 +292,7 @@ def train(
         if not ckpt.is_file():
             raise InputError(f"no checkpoint {PARAMS} in {resume_dir}", file=str(resume_dir))
         meta = read_meta(ckpt)
+        _restore_plant(meta, ckpt)
         spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
         runs, seed = int(meta["runs"]), int(meta["seed"])
         conjunction = conjunction or meta.get("conjunction")
@@ -355,13 +360,23 @@ def train(
 
 def output_set(out: Path | None, spec) -> OutputSet:
     """The output set of a training of ``spec`` into ``out`` (None: a new folder ``runs/<spec>_<N>``);
-    its manifest names the spec."""
+    its manifest names the spec and its plant, and a plant file's copy goes with it."""
     from mitlc.cli.outputs import spec_record
+    from mitlc.plants.user import plant_files, plant_record
 
-    record = spec_record(spec)
+    record = {**spec_record(spec), "plant": plant_record(spec.plant_name or "")}
+    keep = plant_files(spec.plant_name or "")
     if out is None:
-        return OutputSet.numbered(Path("runs"), Path(spec.path or "spec").stem, record=record)
-    return OutputSet(out, record=record)
+        return OutputSet.numbered(Path("runs"), Path(spec.path or "spec").stem, record=record, keep=keep)
+    return OutputSet(out, record=record, keep=keep)
+
+
+def _restore_plant(meta: dict, ckpt: Path) -> None:
+    """Before a checkpoint's spec is parsed: its plant, from the run folder's copy of a plant file."""
+    from mitlc.learn.checkpoint import restore_plant
+
+    for note in restore_plant(meta, ckpt):
+        click.echo(note, err=True)
 
 
 def _wall_before(folder: Path) -> float:
@@ -542,6 +557,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
         return
     if len(policy_dirs) > 1:
         raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy", file="--policy")
+    _restore_plant(meta, ckpt)
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
     agent = load_sacpn(ckpt, meta, spec)
     n = rollouts or agent.runs
