@@ -1,10 +1,12 @@
 """A training folder is used again as it is (issue 28): it remembers its plant file, a default
-``--out`` never lands on another run, and an occupied ``--out`` of another spec is refused."""
+``--out`` never lands on another run, an occupied ``--out`` of another spec is refused, and
+``train`` and ``simulate`` say which initial states they judged."""
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -88,7 +90,7 @@ def test_a_run_remembers_its_plant_file(tmp_path) -> None:
     verdicts = [line for line in after.output.splitlines() if line.startswith("rollout ")]
     assert len(verdicts) == 5
     k = sum("satisfied" in line for line in verdicts)
-    assert f"{k}/5 rollouts satisfy F[0,1] G there" in after.output.splitlines()
+    assert f"{k}/5 rollouts satisfy F[0,1] G there (fresh starts drawn from the initial set, seed 0)" in after.output
 
     del PLANTS["rail_t"]
     r = run("train", "--resume", out, "--trials", 7, "-q", "--no-plots")
@@ -157,6 +159,7 @@ def test_the_default_out_is_numbered_and_never_lands_on_another_run(tmp_path, mo
     assert {p.name: p.read_bytes() for p in Path("runs/p2_avoid_1").iterdir()} == first
 
     # the same spec again is a re-run: its set replaces the earlier one, nothing of that one is left
+    assert run("simulate", "--policy", "runs/p2_avoid_1").exit_code == 0  # writes nothing into the folder
     r = run("train", "--spec", a, "--runs", 3, "--trials", 1, "-q", "--no-plots", "--out", "runs/p2_avoid_1")
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in Path("runs/p2_avoid_1").iterdir()) == ["manifest.json", "metrics.json", "params.npz"]
@@ -170,3 +173,58 @@ def test_an_unwritable_runs_folder_is_one_line(tmp_path, monkeypatch, short_spec
     assert r.exit_code == 2 and r.output.strip() == (
         "--out: error: cannot create the output folder runs: runs is a file"
     )
+
+
+# ---------------------------------------------------------------- item 8: which starts
+
+
+def test_train_and_simulate_say_which_starts_they_judged(short_spec, tmp_path) -> None:
+    out = tmp_path / "pol"
+    r = run("train", "--spec", short_spec, "--runs", 4, "--trials", 200, "--out", out, "-q", "--no-plots")
+    assert r.exit_code == 0, r.output
+    m = json.loads((out / "metrics.json").read_text())
+    rate, satisfied = m["success_rate"], m["satisfied"]
+    assert f"success rate {rate:.2f} (one evaluation start per run; monitor: F G kappa & 10 * G !psi)" in r.output
+    assert np.array(m["evaluation_starts"]).shape == (4, 2)
+
+    # --starts train: the very starts and verdicts of the training, hence its number
+    r = run("simulate", "--policy", out, "--starts", "train")
+    assert r.exit_code == 0, r.output
+    *lines, last = r.output.splitlines()
+    assert len(lines) == 4
+    for i, line in enumerate(lines):
+        q, qdot = m["evaluation_starts"][i]
+        assert line.startswith(f"rollout   {i} (run   {i}, q={q:.3f}, qdot={qdot:.3f}): ")
+        assert ("satisfied" in line) == satisfied[i]
+    assert last == (
+        f"{sum(satisfied)}/4 rollouts satisfy F G kappa & 10 * G !psi (each run's evaluation start, as mitlc train "
+        "judged)"
+    )
+
+    # fresh starts (the default) say so, and where their share differs from the training's, both are printed
+    r = run("simulate", "--policy", out, "--rollouts", 5)
+    assert r.exit_code == 0, r.output
+    lines = r.output.splitlines()
+    k = sum("satisfied" in line for line in lines if line.startswith("rollout "))
+    assert k / 5 != rate  # these seeds: 4/5 fresh against 3/4 in training
+    assert lines[-2:] == [
+        f"{k}/5 rollouts satisfy F G kappa & 10 * G !psi (fresh starts drawn from the initial set, seed 0)",
+        f"from each run's evaluation start, as mitlc train judged: {sum(satisfied)}/4 (success rate {rate:.2f}; "
+        "--starts train shows them)",
+    ]
+
+    r = run("simulate", "--policy", out, "--starts", "train", "--rollouts", 3)
+    assert r.exit_code == 2 and r.output.strip() == (
+        "--rollouts: error: --starts train judges each of the 4 runs from its own evaluation start: "
+        "--rollouts must be 4 (or left out)"
+    )
+
+
+def test_the_same_share_prints_one_line(short_spec, tmp_path) -> None:
+    out = tmp_path / "pol"
+    r = run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "--out", out, "-q", "--no-plots")
+    assert r.exit_code == 0, r.output
+    assert json.loads((out / "metrics.json").read_text())["success_rate"] == 0.0
+    r = run("simulate", "--policy", out, "--rollouts", 3)
+    assert r.exit_code == 0 and r.output.splitlines()[-1].startswith("0/3 rollouts satisfy")
+    assert not re.search("as mitlc train judged", r.output)

@@ -80,8 +80,11 @@ def test_simulate_prints_a_verdict_per_rollout(short_spec, tmp_path):
     res = run("simulate", "--policy", out, "--rollouts", 3)
     assert res.exit_code == 0, res.output
     assert res.output.count("rollout ") == 3
-    assert "rollouts satisfy" in res.output
-    assert (out / "simulate.png").stat().st_size > 0
+    assert "rollouts satisfy F G kappa & 10 * G !psi (fresh starts drawn from the initial set, seed 0)" in res.output
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "metrics.json", "params.npz"]  # no figure unasked
+    plot = tmp_path / "sim.png"
+    assert run("simulate", "--policy", out, "--rollouts", 3, "--plot", plot).exit_code == 0
+    assert plot.read_bytes()[:4] == b"\x89PNG"
     res = run("simulate", "--policy", out, "--policy", out)
     assert res.exit_code == 2
     assert res.output.strip() == (

@@ -370,23 +370,53 @@ def _load_learners(policy_dirs: Sequence[str]) -> list:
 
 
 def simulate_hybrid(
-    policy_dirs: Sequence[str], spec_path: str | None, rollouts: int | None, seed: int, plot_path: str | None
+    policy_dirs: Sequence[str],
+    spec_path: str | None,
+    rollouts: int | None,
+    seed: int,
+    plot_path: str | None,
+    starts: str = "fresh",
 ) -> None:
     """``mitlc simulate`` for HyRL policies: greedy rollouts from random initial states of the
-    spec's set, judged by the checker.  One policy runs on its own automaton (or on ``--spec``'s);
-    several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
-    from mitlc.learn.hyrl_eval import _judge, compose, stabilised
+    spec's set (``starts="fresh"``), or every run from the evenly spaced initial states ``mitlc
+    train`` judged it on (``"train"``), judged by the checker.  One policy runs on its own automaton
+    (or on ``--spec``'s); several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
+    from mitlc.learn.hyrl_eval import _judge, compose, evaluate, stabilised
     from mitlc.learn.plots import png_bytes
 
     learners = _load_learners(policy_dirs)
     if spec_path is None and len(learners) > 1:
         raise InputError("name the combined spec to run several HyRL policies on", file="--spec")
+    ctl = None
     if spec_path is None:
         runner, automaton = learners[0], learners[0].automaton
     else:
         ctl = compose(_load_spec(spec_path), learners)
         runner, automaton = ctl, ctl.automaton
     runs = runner.runs
+    reqs = ", ".join(r.name for r in automaton.requirements)
+    if starts == "train":
+        n_init = _trained_initial_states(policy_dirs[0])
+        if rollouts is not None:
+            raise InputError(
+                f"--starts train judges every run from the {n_init} initial states its training was judged on: "
+                "leave out --rollouts",
+                file="--rollouts",
+            )
+        ev = evaluate(learners[0], n_init) if ctl is None else ctl.evaluate(n_init)
+        for r in range(runs):
+            click.echo(
+                f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
+                f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})"
+            )
+        click.echo(
+            f"success rate {ev.success_rate():.2f} ({n_init} initial states per run, as mitlc train judged: "
+            f"runs that meet {reqs} and stabilise from all of them)"
+        )
+        if plot_path is not None:
+            fig = rollout_mode_figure(ev.rollout, automaton, _example_rows(ev), float(learners[0].u_max), "run 0")
+            atomic_write(plot_path, png_bytes(fig))
+        return
     n = rollouts or runs
     rng = np.random.default_rng(seed)
     (qlo, qhi), (vlo, vhi) = automaton.q0_range, automaton.qdot0_range
@@ -405,11 +435,26 @@ def simulate_hybrid(
             f"rollout {i:3d} (run {run[i]:3d}, q0={x0[i, 0]:.3f}, qdot0={x0[i, 1]:.3f}): "
             f"{'; '.join(parts)}; return {ro.returns[i]:.1f}"
         )
-    reqs = ", ".join(r.name for r in automaton.requirements)
-    click.echo(f"{int(ok.sum())}/{n} rollouts meet {reqs} and stabilise")
-    rows = list(range(min(n, 3)))
-    fig = rollout_mode_figure(ro, automaton, rows, float(learners[0].u_max), f"{int(ok.sum())}/{n} rollouts succeed")
-    atomic_write(plot_path or Path(policy_dirs[0]) / "simulate.png", png_bytes(fig))
+    click.echo(
+        f"{int(ok.sum())}/{n} rollouts meet {reqs} and stabilise (fresh starts drawn from the initial set, seed {seed})"
+    )
+    if plot_path is not None:
+        rows = list(range(min(n, 3)))
+        fig = rollout_mode_figure(
+            ro, automaton, rows, float(learners[0].u_max), f"{int(ok.sum())}/{n} rollouts succeed"
+        )
+        atomic_write(plot_path, png_bytes(fig))
+
+
+def _trained_initial_states(folder: str, default: int = 50) -> int:
+    """How many initial states per run the training in ``folder`` was judged from (its metrics.json)."""
+    import json
+
+    try:
+        n = json.loads((Path(folder) / "metrics.json").read_text(encoding="utf-8")).get("initial_states")
+    except (OSError, ValueError, AttributeError, RecursionError):
+        return default
+    return n if isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 10000 else default
 
 
 # ---------------------------------------------------------------- mitlc compose
