@@ -166,6 +166,22 @@ def test_the_default_out_is_numbered_and_never_lands_on_another_run(tmp_path, mo
     assert read_manifest(Path("runs/p2_avoid_1"))["runs"] == 3
 
 
+def test_a_training_from_before_the_format_key_is_continued_not_overwritten(tmp_path, short_spec) -> None:
+    out = tmp_path / "old"
+    assert (
+        run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "-q", "--no-plots", "--out", out).exit_code == 0
+    )
+    manifest = json.loads((out / "manifest.json").read_text())
+    del manifest["format"], manifest["version"]  # as mitlc wrote it before the key
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    r = run("train", "--spec", short_spec, "--runs", 2, "--trials", 2, "-q", "--no-plots", "--out", out)
+    assert r.exit_code == 2 and "holds files that are not a mitlc training" in r.output
+    r = run("train", "--resume", out, "--trials", 5, "-q", "--no-plots")  # its own checkpoint, continued
+    assert r.exit_code == 0, r.output
+    assert json.loads((out / "metrics.json").read_text())["trials"] == 5
+    assert read_manifest(out)["format"] == "mitlc-run"
+
+
 def test_an_unwritable_runs_folder_is_one_line(tmp_path, monkeypatch, short_spec) -> None:
     monkeypatch.chdir(tmp_path)
     Path("runs").write_text("a file, not a folder")

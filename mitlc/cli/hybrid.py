@@ -221,9 +221,10 @@ def train_hybrid_cli(
         if not s.requirements:
             raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
         learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
-    from mitlc.cli.train import output_set
+    from mitlc.cli.train import _same_folder, output_set
 
-    outset = output_set(None if out is None else Path(out), s).open()  # a folder that cannot be written fails now
+    continuing = resume is not None and out is not None and _same_folder(Path(out), Path(resume))
+    outset = output_set(None if out is None else Path(out), s, continuing).open()  # an unwritable folder fails now
     try:
         return _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots)
     finally:

@@ -91,11 +91,15 @@ class OutputSet:
         option: str = "--out",
         record: Mapping[str, object] | None = None,
         keep: Mapping[str, bytes] | None = None,
+        continuing: bool = False,
     ) -> None:
         self.out = Path(out)
         self.option = option
         self.record = dict(record or {})
         self.keep = dict(keep or {})
+        self.continuing = continuing
+        """The folder's own checkpoint is being continued (``--resume DIR`` into DIR): taken as a
+        training even without mitlc's manifest (one written before it had the format key)."""
         self._locked = False
 
     @classmethod
@@ -156,6 +160,8 @@ class OutputSet:
     def _check_ours(self) -> None:
         """Refuse a folder that holds the user's files, or a training of another spec."""
         manifest = read_manifest(self.out)
+        if manifest is None and self.continuing:
+            return
         if manifest is None:
             try:
                 theirs = sorted(p.name for p in self.out.iterdir() if not p.name.startswith("."))

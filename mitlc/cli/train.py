@@ -354,16 +354,25 @@ def train(
     if meta is not None:
         agent.load(Path(resume_dir) / PARAMS)
         wall_before = _wall_before(Path(resume_dir))
-    outset = output_set(out, spec).open()  # before training: a folder that cannot be written fails now
+    continuing = resume_dir is not None and out is not None and _same_folder(out, Path(resume_dir))
+    outset = output_set(out, spec, continuing).open()  # before training: a folder that cannot be written fails now
     try:
         _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots)
     finally:
         outset.close()
 
 
-def output_set(out: Path | None, spec) -> OutputSet:
+def _same_folder(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False
+
+
+def output_set(out: Path | None, spec, continuing: bool = False) -> OutputSet:
     """The output set of a training of ``spec`` into ``out`` (None: a new folder ``runs/<spec>_<N>``);
-    its manifest names the spec and its plant, and a plant file's copy goes with it."""
+    its manifest names the spec and its plant, and a plant file's copy goes with it. ``continuing``:
+    ``out`` is the folder whose checkpoint is resumed (see :class:`OutputSet`)."""
     from mitlc.cli.outputs import spec_record
     from mitlc.plants.user import plant_files, plant_record
 
@@ -371,7 +380,7 @@ def output_set(out: Path | None, spec) -> OutputSet:
     keep = plant_files(spec.plant_name or "")
     if out is None:
         return OutputSet.numbered(Path("runs"), Path(spec.path or "spec").stem, record=record, keep=keep)
-    return OutputSet(out, record=record, keep=keep)
+    return OutputSet(out, record=record, keep=keep, continuing=continuing)
 
 
 def _restore_plant(meta: dict, ckpt: Path) -> None:
