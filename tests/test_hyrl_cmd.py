@@ -183,7 +183,8 @@ def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
     res = runner.invoke(simulate, ["--policy", str(over), "--rollouts", "4", "--seed", "3"])
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
-    assert len(lines) == 5 and lines[-1].endswith("rollouts meet overshoot and stabilise")
+    assert len(lines) == 5
+    assert lines[-1].endswith("rollouts meet overshoot and stabilise (fresh starts drawn from the initial set, seed 3)")
     # the same rollouts by hand: initial states from the seed, rollout i on run i mod 2, the checker
     learner = load_learner(over / "params.npz")
     rng = np.random.default_rng(3)
@@ -194,7 +195,17 @@ def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
         assert line.startswith(f"rollout   {i} (run   {i % 2}, q0={x0[i, 0]:.3f}")
         assert f"overshoot {m.overshoot[i]:.3g} " in line
         assert f"return {ro.returns[i]:.1f}" in line
-    assert (over / "simulate.png").read_bytes()[:4] == b"\x89PNG"
+    assert not (over / "simulate.png").exists()  # a figure only when asked for (--plot)
+
+    # --starts train: the evenly spaced initial states the training judged, and its number again
+    res = runner.invoke(simulate, ["--policy", str(over), "--starts", "train"])
+    assert res.exit_code == 0, res.output
+    m = json.loads((over / "metrics.json").read_text())
+    *per_run, last = res.output.splitlines()
+    assert last.startswith(f"success rate {m['success_rate']:.2f} (3 initial states per run, as mitlc train judged")
+    assert [line.startswith(f"run {r:3d}: 3/3 ") for r, line in enumerate(per_run)] == m["runs_succeeding"]
+    res = runner.invoke(simulate, ["--policy", str(over), "--starts", "train", "--rollouts", "2"])
+    assert res.exit_code == 2 and "leave out --rollouts" in res.output
 
     combined = md / "overshoot_rise_time.mitl"
     plot = tmp_path / "composed.png"

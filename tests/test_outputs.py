@@ -144,11 +144,39 @@ def test_the_set_is_one_training_and_its_manifest_is_written_last(tmp_path):
 
 def test_files_that_are_not_ours_are_left_alone(tmp_path):
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "notes.txt").write_text("mine")
     assert _train(["--trials", "2"], out).exit_code == 0
+    (out / "notes.txt").write_text("mine")  # the user's, put into mitlc's folder: not listed, not touched
     assert _train(["--trials", "2", "--no-plots"], out).exit_code == 0
     assert (out / "notes.txt").read_text() == "mine"
+    assert set(read_manifest(out)["files"]) == {"params.npz", "metrics.json"}
+
+
+def test_a_folder_of_the_users_files_is_refused_not_cleaned(tmp_path):
+    """Issue 29 item 2: a manifest.json without mitlc's format key is the user's file, not a licence to clean."""
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / "notes.txt").write_text("notes")
+    (out / "metrics.json").write_text("my metrics")
+    fake = '{"files":{"notes.txt":"", "metrics.json":""}}'
+    (out / MANIFEST).write_text(fake)
+    r = _train(["--trials", "1"], out)
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert r.output.strip() == (
+        f"--out: error: {out} holds files that are not a mitlc training (manifest.json, metrics.json, notes.txt); "
+        "mitlc writes only into a new or empty folder or one of its own trainings: give another --out"
+    )
+    assert (out / "notes.txt").read_text() == "notes" and (out / "metrics.json").read_text() == "my metrics"
+    assert (out / MANIFEST).read_text() == fake and sorted(p.name for p in out.iterdir()) == [
+        MANIFEST,
+        "metrics.json",
+        "notes.txt",
+    ]  # not even a lock left behind
+    assert read_manifest(out) is None  # not ours
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _train(["--trials", "1", "--no-plots"], empty).exit_code == 0  # an empty folder is fine
+    manifest = read_manifest(empty)
+    assert manifest["format"] == "mitlc-run" and manifest["version"] == 1
 
 
 def test_a_second_training_into_a_locked_folder_is_refused(tmp_path):

@@ -686,7 +686,9 @@ def test_cli_list_shows_every_weight_option_and_setting():
 @pytest.mark.parametrize(
     "args, message",
     [
-        (("--grid", "sigm=1"), "--grid: error: unknown grid name 'sigm'"),
+        (("--grid", "sigm=1"), "--grid: error: unknown grid name 'sigm' (did you mean 'sigma'?)"),
+        (("--grid", "gama=0.9"), "--grid: error: unknown grid name 'gama' (did you mean 'gamma'?)"),
+        (("--grid", "zzz=1"), "--grid: error: unknown grid name 'zzz' (trainer settings: "),
         (("--grid", "weight.psi=-2"), "--grid: error: weight.psi=-2: a weight must be positive"),
         (("--address", "auto"), "--address: error: --address is for --backend ray"),
     ],

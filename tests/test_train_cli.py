@@ -80,8 +80,11 @@ def test_simulate_prints_a_verdict_per_rollout(short_spec, tmp_path):
     res = run("simulate", "--policy", out, "--rollouts", 3)
     assert res.exit_code == 0, res.output
     assert res.output.count("rollout ") == 3
-    assert "rollouts satisfy" in res.output
-    assert (out / "simulate.png").stat().st_size > 0
+    assert "rollouts satisfy F G kappa & 10 * G !psi (fresh starts drawn from the initial set, seed 0)" in res.output
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "metrics.json", "params.npz"]  # no figure unasked
+    plot = tmp_path / "sim.png"
+    assert run("simulate", "--policy", out, "--rollouts", 3, "--plot", plot).exit_code == 0
+    assert plot.read_bytes()[:4] == b"\x89PNG"
     res = run("simulate", "--policy", out, "--policy", out)
     assert res.exit_code == 2
     assert res.output.strip() == (
@@ -177,7 +180,10 @@ def test_set_overrides_any_trainer_setting_sacpn_and_hyrl(short_spec, spec_dir, 
 @pytest.mark.parametrize(
     "spec, args, message",
     [
-        ("short", ("--set", "alpha=1"), "--set: error: unknown setting 'alpha' (known: gamma, lam,"),
+        ("short", ("--set", "alpha=1"), "--set: error: unknown setting 'alpha' (did you mean 'alpha_a' or 'alpha_c'?)"),
+        ("short", ("--set", "gama=0.9"), "--set: error: unknown setting 'gama' (did you mean 'gamma'?)"),
+        ("short", ("--set", "zeta=1"), "--set: error: unknown setting 'zeta' (known: gamma, lam,"),
+        ("overshoot", ("--set", "sigmaa=1"), "--set: error: unknown setting 'sigmaa' (did you mean 'sigma'?)"),
         ("short", ("--set", "gamma"), "--set: error: 'gamma' is not NAME=VALUE"),
         ("short", ("--set", "gamma=high"), "--set: error: gamma: 'high' is not a number"),
         ("short", ("--set", "gamma=3"), "--set: error: gamma must be in [0, 1], got 3.0"),

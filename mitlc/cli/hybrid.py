@@ -32,7 +32,6 @@ import numpy as np
 
 from mitlc.cli import interrupt
 from mitlc.cli.common import atomic_write, handle_errors, output_option, plant_file_option, write_result
-from mitlc.cli.outputs import OutputSet
 from mitlc.errors import InputError, TrainingError
 from mitlc.fileio import json_text
 from mitlc.spec.model import Spec
@@ -193,7 +192,7 @@ def train_hybrid_cli(
     runs: int,
     trials: int,
     seed: int,
-    out: str | Path,
+    out: str | Path | None,
     progress: bool = True,
     settings=None,
     n_init: int = 50,
@@ -204,7 +203,8 @@ def train_hybrid_cli(
     ``metrics.json``, ``params.npz``, ``learning_curve.png`` and ``rollout.png`` to ``out``.
 
     ``trials`` counts all trials, those of a ``resume`` directory's checkpoint
-    included (its spec, runs, seed and settings are used).  Returns the metrics.
+    included (its spec, runs, seed and settings are used); ``out`` None is a new
+    folder ``runs/<spec>_<N>``.  Returns the metrics.
     Ctrl-C stops after the last complete trial, writes everything so far
     (``interrupted: true``) and exits with status 130.
     """
@@ -221,7 +221,10 @@ def train_hybrid_cli(
         if not s.requirements:
             raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
         learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
-    outset = OutputSet(out).open()  # before training: a folder that cannot be written fails now
+    from mitlc.cli.train import _same_folder, output_set
+
+    continuing = resume is not None and out is not None and _same_folder(Path(out), Path(resume))
+    outset = output_set(None if out is None else Path(out), s, continuing).open()  # an unwritable folder fails now
     try:
         return _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots)
     finally:
@@ -343,6 +346,8 @@ def automaton(spec: str, fmt: str, output: str | None) -> None:
 
 
 def _load_learners(policy_dirs: Sequence[str]) -> list:
+    """The HyRL learners of ``policy_dirs``, each folder's plant restored first (a plant file's copy)."""
+    from mitlc.learn.checkpoint import read_meta, restore_plant
     from mitlc.learn.hyrl import load_learner
 
     learners = []
@@ -350,28 +355,60 @@ def _load_learners(policy_dirs: Sequence[str]) -> list:
         ckpt = Path(d) / PARAMS
         if not ckpt.is_file():
             raise InputError(f"no {PARAMS} in {d} (train first with 'mitlc train --out DIR')", file=str(d))
+        for note in restore_plant(read_meta(ckpt), ckpt):
+            click.echo(note, err=True)
         learners.append(load_learner(ckpt))
     return learners
 
 
 def simulate_hybrid(
-    policy_dirs: Sequence[str], spec_path: str | None, rollouts: int | None, seed: int, plot_path: str | None
+    policy_dirs: Sequence[str],
+    spec_path: str | None,
+    rollouts: int | None,
+    seed: int,
+    plot_path: str | None,
+    starts: str = "fresh",
 ) -> None:
     """``mitlc simulate`` for HyRL policies: greedy rollouts from random initial states of the
-    spec's set, judged by the checker.  One policy runs on its own automaton (or on ``--spec``'s);
-    several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
-    from mitlc.learn.hyrl_eval import _judge, compose, stabilised
+    spec's set (``starts="fresh"``), or every run from the evenly spaced initial states ``mitlc
+    train`` judged it on (``"train"``), judged by the checker.  One policy runs on its own automaton
+    (or on ``--spec``'s); several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
+    from mitlc.learn.hyrl_eval import _judge, compose, evaluate, stabilised
     from mitlc.learn.plots import png_bytes
 
     learners = _load_learners(policy_dirs)
     if spec_path is None and len(learners) > 1:
         raise InputError("name the combined spec to run several HyRL policies on", file="--spec")
+    ctl = None
     if spec_path is None:
         runner, automaton = learners[0], learners[0].automaton
     else:
         ctl = compose(_load_spec(spec_path), learners)
         runner, automaton = ctl, ctl.automaton
     runs = runner.runs
+    reqs = ", ".join(r.name for r in automaton.requirements)
+    if starts == "train":
+        n_init = _trained_initial_states(policy_dirs[0])
+        if rollouts is not None:
+            raise InputError(
+                f"--starts train judges every run from the {n_init} initial states its training was judged on: "
+                "leave out --rollouts",
+                file="--rollouts",
+            )
+        ev = evaluate(learners[0], n_init) if ctl is None else ctl.evaluate(n_init)
+        for r in range(runs):
+            click.echo(
+                f"run {r:3d}: {int(ev.ok()[r].sum())}/{n_init} initial states succeed "
+                f"(criteria met: {int(ev.passed[r].sum())}, stabilised: {int(ev.stabilised[r].sum())})"
+            )
+        click.echo(
+            f"success rate {ev.success_rate():.2f} ({n_init} initial states per run, as mitlc train judged: "
+            f"runs that meet {reqs} and stabilise from all of them)"
+        )
+        if plot_path is not None:
+            fig = rollout_mode_figure(ev.rollout, automaton, _example_rows(ev), float(learners[0].u_max), "run 0")
+            atomic_write(plot_path, png_bytes(fig))
+        return
     n = rollouts or runs
     rng = np.random.default_rng(seed)
     (qlo, qhi), (vlo, vhi) = automaton.q0_range, automaton.qdot0_range
@@ -390,11 +427,26 @@ def simulate_hybrid(
             f"rollout {i:3d} (run {run[i]:3d}, q0={x0[i, 0]:.3f}, qdot0={x0[i, 1]:.3f}): "
             f"{'; '.join(parts)}; return {ro.returns[i]:.1f}"
         )
-    reqs = ", ".join(r.name for r in automaton.requirements)
-    click.echo(f"{int(ok.sum())}/{n} rollouts meet {reqs} and stabilise")
-    rows = list(range(min(n, 3)))
-    fig = rollout_mode_figure(ro, automaton, rows, float(learners[0].u_max), f"{int(ok.sum())}/{n} rollouts succeed")
-    atomic_write(plot_path or Path(policy_dirs[0]) / "simulate.png", png_bytes(fig))
+    click.echo(
+        f"{int(ok.sum())}/{n} rollouts meet {reqs} and stabilise (fresh starts drawn from the initial set, seed {seed})"
+    )
+    if plot_path is not None:
+        rows = list(range(min(n, 3)))
+        fig = rollout_mode_figure(
+            ro, automaton, rows, float(learners[0].u_max), f"{int(ok.sum())}/{n} rollouts succeed"
+        )
+        atomic_write(plot_path, png_bytes(fig))
+
+
+def _trained_initial_states(folder: str, default: int = 50) -> int:
+    """How many initial states per run the training in ``folder`` was judged from (its metrics.json)."""
+    import json
+
+    try:
+        n = json.loads((Path(folder) / "metrics.json").read_text(encoding="utf-8")).get("initial_states")
+    except (OSError, ValueError, AttributeError, RecursionError):
+        return default
+    return n if isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 10000 else default
 
 
 # ---------------------------------------------------------------- mitlc compose
@@ -454,8 +506,8 @@ def compose_cmd(
     from mitlc.learn.plots import png_bytes
     from mitlc.spec.parse import load_spec
 
+    learners = _load_learners(policy_dirs)  # first: their folders make a plant file's plant known to SPEC
     s = load_spec(spec)
-    learners = _load_learners(policy_dirs)
     ctl = compose(s, learners)
     for mode, src in ctl.describe().items():
         click.echo(f"mode {mode:<5} policy {src}")

@@ -1,14 +1,20 @@
 """``mitlc train`` and ``mitlc simulate``: thin click commands over :mod:`mitlc.learn.sacpn`.
 
 ``mitlc train --plant pendulum`` trains the plant's default spec (problem 2
-of the thesis) with 30 runs and writes, to ``--out`` (default ``runs/<spec>``):
+of the thesis) with 30 runs and writes, to ``--out`` (default: a new folder
+``runs/<spec>_<N>``, N the next free number):
 
 * ``metrics.json``: ``returns`` (runs x trials), ``success_rate`` (fraction of
-  runs whose final greedy rollout satisfies the spec, by :mod:`mitlc.monitor`),
+  runs whose final greedy rollout, from the run's evaluation start
+  ``evaluation_starts``, satisfies the spec, by :mod:`mitlc.monitor`),
   ``satisfied`` and ``robustness`` per run, ``wall_s``, the settings;
 * ``params.npz``: the learner's full state (parameters, random generator
   states, trial counter), also the checkpoint ``--resume`` continues from;
-* ``learning_curve.png`` and ``rollout.png``.
+* ``learning_curve.png`` and ``rollout.png``;
+* ``plants/FILE.py``: a copy of the plant file the spec's plant came from
+  (``--plant-file``), so that the folder is used again without it;
+* ``manifest.json``: the set's files with their SHA-256, the spec and its plant
+  (:mod:`mitlc.cli.outputs`).
 
 Every file is written atomically.  Ctrl-C stops after rolling back to the last
 complete trial and writes the checkpoint; ``--resume DIR`` then continues to
@@ -159,9 +165,11 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
         "returns": agent.returns.round(6),
     }
     if not interrupted and agent.trial > 0:
-        ro = agent.rollout(agent.evaluation_states())
+        x0 = agent.evaluation_states()  # one per run, from its evaluation stream (mitlc simulate --starts train)
+        ro = agent.rollout(x0)
         res = _judge(spec, ro)
         metrics.update(
+            evaluation_starts=x0.round(12),
             success_rate=float(np.mean(res.satisfied)),
             satisfied=[bool(v) for v in res.satisfied],
             robustness=[float(v) for v in res.robustness],
@@ -204,7 +212,8 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     "out_dir",
     type=click.Path(file_okay=False),
     default=None,
-    help="Output directory (default runs/<spec name>, or the --resume directory).",
+    help="Output directory (default: a new runs/<spec name>_<N>, or the --resume directory). A folder "
+    "holding other files, or a training of another spec, is refused.",
 )
 @click.option(
     "--resume",
@@ -294,6 +303,7 @@ def train(
         if not ckpt.is_file():
             raise InputError(f"no checkpoint {PARAMS} in {resume_dir}", file=str(resume_dir))
         meta = read_meta(ckpt)
+        _restore_plant(meta, ckpt)
         spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
         runs, seed = int(meta["runs"]), int(meta["seed"])
         conjunction = conjunction or meta.get("conjunction")
@@ -301,7 +311,7 @@ def train(
         clock = clock or meta.get("clock")
         reward = reward or meta.get("reward")
         base = SacpnSettings.from_dict(meta["settings"])
-        out = Path(out_dir or resume_dir)
+        out: Path | None = Path(out_dir or resume_dir)
     else:
         if spec_path is None:
             if plant_name is None:
@@ -309,7 +319,7 @@ def train(
             spec_path = str(find_default_spec(plant_name))
         spec = _load(spec_path)
         base = SacpnSettings()
-        out = Path(out_dir or Path("runs") / Path(spec_path).stem)
+        out = Path(out_dir) if out_dir else None  # None: a new runs/<spec>_<N> (output_set)
     if plant_name is not None and spec.plant_name != plant_name:
         raise InputError(f"the spec is for plant '{spec.plant_name}', not '{plant_name}'", file=spec.path)
     for w in spec.warnings:
@@ -353,11 +363,41 @@ def train(
     if meta is not None:
         agent.load(Path(resume_dir) / PARAMS)
         wall_before = _wall_before(Path(resume_dir))
-    outset = OutputSet(out).open()  # before training: a folder that cannot be written fails now
+    continuing = resume_dir is not None and out is not None and _same_folder(out, Path(resume_dir))
+    outset = output_set(out, spec, continuing).open()  # before training: a folder that cannot be written fails now
     try:
         _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots)
     finally:
         outset.close()
+
+
+def _same_folder(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False
+
+
+def output_set(out: Path | None, spec, continuing: bool = False) -> OutputSet:
+    """The output set of a training of ``spec`` into ``out`` (None: a new folder ``runs/<spec>_<N>``);
+    its manifest names the spec and its plant, and a plant file's copy goes with it. ``continuing``:
+    ``out`` is the folder whose checkpoint is resumed (see :class:`OutputSet`)."""
+    from mitlc.cli.outputs import spec_record
+    from mitlc.plants.user import plant_files, plant_record
+
+    record = {**spec_record(spec), "plant": plant_record(spec.plant_name or "")}
+    keep = plant_files(spec.plant_name or "")
+    if out is None:
+        return OutputSet.numbered(Path("runs"), Path(spec.path or "spec").stem, record=record, keep=keep)
+    return OutputSet(out, record=record, keep=keep, continuing=continuing)
+
+
+def _restore_plant(meta: dict, ckpt: Path) -> None:
+    """Before a checkpoint's spec is parsed: its plant, from the run folder's copy of a plant file."""
+    from mitlc.learn.checkpoint import restore_plant
+
+    for note in restore_plant(meta, ckpt):
+        click.echo(note, err=True)
 
 
 def _wall_before(folder: Path) -> float:
@@ -455,7 +495,7 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     click.echo(
         f"{agent.runs} runs x {agent.trial} trials in {wall:.1f} s; "
         f"final mean return {_mean(agent.returns[:, -10:]):.1f}; "
-        f"success rate {rate:.2f} (monitor: {spec.monitor_formula}); results in {out}"
+        f"success rate {rate:.2f} (one evaluation start per run; monitor: {spec.monitor_formula}); results in {out}"
         if rate is not None
         else f"no trials run; results in {out}"
     )
@@ -485,14 +525,27 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     help="Number of rollouts (default: one per trained run); rollout i uses run i mod runs.",
 )
 @click.option(
-    "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True, help="Seed of the initial states."
+    "--seed",
+    type=click.IntRange(0, 2**63 - 1),
+    default=0,
+    show_default=True,
+    help="Seed of the fresh initial states (--starts fresh).",
+)
+@click.option(
+    "--starts",
+    type=click.Choice(["fresh", "train"]),
+    default="fresh",
+    show_default=True,
+    help="fresh: --rollouts initial states drawn anew from the spec's initial set with --seed; train: the "
+    "states 'mitlc train' judged its success rate on (each run's evaluation start; for HyRL, the evenly "
+    "spaced initial states), which reproduces its number.",
 )
 @click.option(
     "--plot",
     "plot_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Write the figure here (default DIR/simulate.png).",
+    help="Write a figure of the first rollouts here (PNG); without it no figure is written.",
 )
 @click.option(
     "--trace",
@@ -504,11 +557,13 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
 )
 @plant_file_option
 @handle_errors
-def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> None:
+def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_path) -> None:
     """Roll out a trained greedy policy from the spec's initial set and judge each rollout.
 
-    HyRL policies (classical criteria) are judged by the checker; several of them run
-    composed on --spec's combined automaton (thesis section 3-3-3)."""
+    By default from fresh initial states (--seed); --starts train judges on the states
+    'mitlc train' judged its success rate on. HyRL policies (classical criteria) are judged
+    by the checker; several of them run composed on --spec's combined automaton (thesis
+    section 3-3-3)."""
     from mitlc.learn.policy import load_sacpn
     from mitlc.learn.sacpn import read_meta
 
@@ -526,14 +581,23 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
 
         if trace_path is not None:
             raise InputError("--trace writes SACPN rollouts; a HyRL rollout is judged by criteria", file="--trace")
-        simulate_hybrid(policy_dirs, spec_path, rollouts, seed, plot_path)
+        simulate_hybrid(policy_dirs, spec_path, rollouts, seed, plot_path, starts)
         return
     if len(policy_dirs) > 1:
         raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy", file="--policy")
+    _restore_plant(meta, ckpt)
     spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
     agent = load_sacpn(ckpt, meta, spec)
+    if starts == "train" and rollouts not in (None, agent.runs):
+        raise InputError(
+            f"--starts train judges each of the {agent.runs} runs from its own evaluation start: "
+            f"--rollouts must be {agent.runs} (or left out)",
+            file="--rollouts",
+        )
     n = rollouts or agent.runs
-    if agent.sim.settable:
+    if starts == "train":  # the states mitlc train judged on: the checkpoint's evaluation streams
+        x0 = agent.evaluation_states()
+    elif agent.sim.settable:
         rng = np.random.default_rng(seed)
         x0 = np.empty((n, len(agent.init_ranges)))
         for i, (lo, hi) in enumerate(agent.init_ranges):
@@ -562,7 +626,21 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
             f"rollout {i:3d} (run {i % agent.runs:3d}, {start}): {verdict}; "
             f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}"
         )
-    click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
+    k = int(res.satisfied.sum())
+    if starts == "train":
+        where = "each run's evaluation start, as mitlc train judged" + _trained_on(meta, spec)
+    elif agent.sim.settable:
+        where = f"fresh starts drawn from the initial set, seed {seed}"
+    else:
+        where = f"fresh resets of the environment, seed {seed}"
+    click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
+    if starts == "fresh" and spec.source == meta["spec_source"] and agent.trial > 0:
+        judged = _judge(spec, agent.rollout(agent.evaluation_states())).satisfied
+        if judged.mean() != k / n:  # mitlc train's number differs: say both, and on which starts
+            click.echo(
+                f"from each run's evaluation start, as mitlc train judged: {int(judged.sum())}/{agent.runs} "
+                f"(success rate {judged.mean():.2f}; --starts train shows them)"
+            )
     if trace_path is not None:
         from mitlc.monitor.trace import write_trace
 
@@ -573,7 +651,10 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
             cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
             write_trace(p, t, cols, {"u": ro.actions[i]})
         click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
-    atomic_write(
-        plot_path or Path(policy_dir) / "simulate.png",
-        _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"),
-    )
+    if plot_path is not None:
+        atomic_write(plot_path, _rollout_png(agent, ro, res.satisfied, f"{k}/{n} satisfy"))
+
+
+def _trained_on(meta: dict, spec) -> str:
+    """``''`` when ``spec`` is the one the policy was trained on, else a note that the verdicts are ``spec``'s."""
+    return "" if spec.source == meta["spec_source"] else ", here by --spec"

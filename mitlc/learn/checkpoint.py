@@ -16,7 +16,7 @@ import numpy as np
 
 from mitlc.errors import InputError
 
-__all__ = ["read_checkpoint", "read_meta", "load_state", "damaged"]
+__all__ = ["read_checkpoint", "read_meta", "load_state", "damaged", "restore_plant"]
 
 _COMMON = {
     "runs": int,
@@ -95,3 +95,12 @@ def damaged(path: str | Path, exc: BaseException) -> InputError:
 def _why(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return text[0] if text else type(exc).__name__
+
+
+def restore_plant(meta: dict[str, Any], path: str | Path) -> list[str]:
+    """Make the plant of the checkpoint at ``path`` known before its spec is parsed: a plant file's
+    copy in the checkpoint's folder is loaded when the plant is not registered (see
+    :func:`mitlc.plants.user.restore_plant`). Returns notes for the user, one line each."""
+    from mitlc.plants.user import restore_plant as restore
+
+    return restore(meta.get("plant"), Path(path).parent, where=str(path))

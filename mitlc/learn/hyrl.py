@@ -556,6 +556,8 @@ class HybridLearner:
 
     # ------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict[str, np.ndarray]:
+        from mitlc.plants.user import plant_record
+
         meta = {
             "kind": "hyrl",
             "trial": self.trial,
@@ -569,6 +571,7 @@ class HybridLearner:
             "feature_vars": list(self.features.names),
             "spec_source": self.spec.source or "",
             "spec_path": self.spec.path or "",
+            "plant": plant_record(self.spec.plant_name or ""),  # a plant file: used again from the run's copy
         }
         return {
             "xi": self.xi,

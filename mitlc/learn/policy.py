@@ -19,13 +19,14 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from mitlc.errors import InputError
-from mitlc.learn.checkpoint import damaged, read_meta
+from mitlc.learn.checkpoint import damaged, read_meta, restore_plant
 from mitlc.spec.model import Spec
 
 __all__ = ["Policy", "SacpnPolicy", "HyrlPolicy", "load_policy", "load_sacpn", "PARAMS"]
@@ -141,11 +142,16 @@ def load_sacpn(ckpt: str | Path, meta: dict[str, Any], spec: Spec | None = None)
 
 
 def load_policy(directory: str | Path) -> Policy:
-    """The policy ``mitlc train --out DIRECTORY`` saved (its ``params.npz``), SACPN or HyRL."""
+    """The policy ``mitlc train --out DIRECTORY`` saved (its ``params.npz``), SACPN or HyRL.
+
+    A plant from a plant file need not be registered: the folder's copy of the file is loaded
+    (the code the training ran; a :class:`UserWarning` says when the original file differs now)."""
     ckpt = Path(directory) / PARAMS
     if not ckpt.is_file():
         raise InputError(f"no {PARAMS} in {directory} (train first with 'mitlc train --out DIR')", file=str(directory))
     meta = read_meta(ckpt)
+    for note in restore_plant(meta, ckpt):
+        warnings.warn(note, stacklevel=2)
     if meta.get("kind") == "hyrl":
         from mitlc.learn.hyrl import load_learner
 

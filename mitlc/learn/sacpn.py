@@ -851,6 +851,8 @@ class Sacpn:
 
     # ------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict[str, np.ndarray]:
+        from mitlc.plants.user import plant_record
+
         meta = {
             "trial": self.trial,
             "ramp_trials": self.ramp_trials,
@@ -863,6 +865,7 @@ class Sacpn:
             "state_names": list(self.plant.state_names),
             "spec_source": self.spec.source or "",
             "spec_path": self.spec.path or "",
+            "plant": plant_record(self.spec.plant_name or ""),  # a plant file: used again from the run's copy
             "conjunction": self.rs.options.conjunction,
             "violations": self.rs.options.violations,
             "clock": self.rs.options.clock,

@@ -14,6 +14,7 @@ S(gamma=0.5, grid=(4, 4))
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import typing
 from collections.abc import Callable, Iterable, Mapping
@@ -34,6 +35,8 @@ __all__ = [
     "parser_for",
     "setting_parsers",
     "parse_assignments",
+    "did_you_mean",
+    "close_names",
 ]
 
 T = TypeVar("T")
@@ -213,6 +216,30 @@ def setting_parsers(cls: type) -> dict[str, Callable[[str], Any]]:
     return out
 
 
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """``: did you mean 'gamma'?`` for a name close to one of ``known``, else the list of them.
+
+    >>> did_you_mean("gama", ["alpha_a", "gamma", "sigma"])
+    " (did you mean 'gamma'?)"
+    >>> did_you_mean("zzz", ["alpha_a", "gamma"])
+    ' (known: alpha_a, gamma)'
+    """
+    known = list(known)
+    close = close_names(name, known)
+    return f" (did you mean {close}?)" if close else f" (known: {', '.join(known)})"
+
+
+def close_names(name: str, known: Iterable[str]) -> str:
+    """The names of ``known`` close to ``name`` (a typo of them), quoted, best first: ``'alpha_a' or 'alpha_c'``.
+
+    >>> close_names("alpha", ["alpha_a", "alpha_c", "gamma"]), close_names("zzz", ["gamma"])
+    ("'alpha_a' or 'alpha_c'", '')
+    """
+    score = {k: difflib.SequenceMatcher(None, name, k).ratio() for k in known}
+    close = sorted((k for k, r in score.items() if r >= 0.75), key=lambda k: (-score[k], k))[:3]
+    return " or ".join(f"'{k}'" for k in close)
+
+
 def parse_assignments(cls: type[T], items: Iterable[str], option: str = "--set") -> dict[str, Any]:
     """``NAME=VALUE`` texts as typed values of ``cls``'s fields; a bad name or value is an
     :class:`InputError` naming ``option`` (never ``eval``: each field has its parser)."""
@@ -224,7 +251,7 @@ def parse_assignments(cls: type[T], items: Iterable[str], option: str = "--set")
         if not sep or not name:
             raise InputError(f"'{item}' is not NAME=VALUE", file=option)
         if name not in parsers:
-            raise InputError(f"unknown setting '{name}' (known: {', '.join(parsers)})", file=option)
+            raise InputError(f"unknown setting '{name}'{did_you_mean(name, parsers)}", file=option)
         try:
             out[name] = parsers[name](text)
         except ValueError as exc:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from mitlc.errors import InputError, MitlError
-from mitlc.learn.settings import parse_finite, setting_parsers
+from mitlc.learn.settings import close_names, parse_finite, setting_parsers
 from mitlc.plants.user import SOURCES as PLANT_SOURCES
 from mitlc.spec import ast as A
 from mitlc.spec.model import OPTIONS, Spec
@@ -249,6 +249,9 @@ def parse_grid(items: Sequence[str], spec: Spec) -> tuple[Axis, ...]:
         elif name in settings:
             kind, key, parse = "setting", name, settings[name]
         else:
+            close = close_names(name, [*settings, *(s.axis for s in sites), *("option." + o for o in OPTIONS)])
+            if close:
+                raise _axis_error(f"unknown grid name '{name}' (did you mean {close}?)")
             raise _axis_error(
                 f"unknown grid name '{name}' (trainer settings: {', '.join(settings)}; "
                 f"weights: {weight_names}; options: {', '.join('option.' + o for o in OPTIONS)})"
