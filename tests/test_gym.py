@@ -31,6 +31,12 @@ P5 = SPECS / "p5_timed_visit.mitl"
 PENDULUM_DT = 0.05  # Gymnasium's Pendulum-v1: env.unwrapped.dt
 HAS_MONITOR = importlib.util.find_spec("mitlc.monitor") is not None
 
+UPRIGHT = (
+    "plant pendulum(u_max = 3)\ninit q in [-0.1, 0.1], qdot = 0\nhorizon 3\nprop kappa = abs(q) < 0.3\n"
+    "formula F G kappa\n"
+)
+"""A spec whose pendulum starts inside kappa, near the top."""
+
 # Warnings check_env gives for Pendulum-v1 itself, whatever wraps it.
 KNOWN_WARNINGS = ("is different from the unwrapped version", "symmetric and normalized space")
 
@@ -437,6 +443,70 @@ def test_registered_environments_of_mitlc_plants() -> None:
     check_env(md.unwrapped, skip_render_check=True)
     with pytest.raises(MitlError, match="no 'formula'"):  # its default spec has classical criteria only
         gym.make("mitlc/MassDamper-v0")
+
+
+@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor is not there yet")
+def test_registered_environment_gives_the_monitors_verdict() -> None:
+    """info["verdict"] of mitlc/Pendulum-v0 is the monitor's on the episode's states so far (the online
+    monitor per step, the offline one's whole verdict at the horizon), with the wrapper's verdict= option."""
+    import mitlc.gym  # noqa: F401 - registers the environments
+    from mitlc.monitor.offline import monitor
+
+    up = parse_spec(UPRIGHT)
+    env = gym.make("mitlc/Pendulum-v0", spec=up)
+    base = env.unwrapped
+    obs, info = env.reset(seed=4)
+    states, infos, done = [base._x[0].copy()], [info], False  # noqa: SLF001 - the plant's float64 state
+    while not done:  # no input: it starts inside kappa near the top and falls out
+        obs, _, term, trunc, info = env.step(np.array([0.0], np.float32))
+        states.append(base._x[0].copy())  # noqa: SLF001
+        infos.append(info)
+        done = term or trunc
+    x = np.array(states)
+    assert x.shape == (101, 2) and np.array_equal(base.trace, x)
+    np.testing.assert_allclose(obs["obs"], x[-1], rtol=1e-6)  # the observation shows the same state
+    spec = base.mitl_spec
+    seen = set()
+    for k in range(100):  # every prefix, from the online monitor
+        res = monitor(spec, x[: k + 1], base.dt)
+        assert infos[k]["verdict"] == {"satisfied": bool(res.satisfied[0]), "robustness": float(res.robustness[0])}
+        seen.add(bool(res.satisfied[0]))
+    assert infos[0]["verdict"]["satisfied"] is True and seen == {True, False}  # F G kappa, then not
+    res = monitor(spec, x, base.dt)
+    last = infos[-1]["verdict"]
+    assert last["satisfied"] == bool(res.satisfied[0]) and last["robustness"] == float(res.robustness[0])
+    assert last["failing"] == res.failing[0] and last["violation_time"] == float(res.violation_time[0])
+    assert last["satisfied"] is False and last["failing"] == "F G kappa"
+
+    def verdict_steps(**kw) -> list[int]:
+        e = gym.make("mitlc/Pendulum-v0", spec=up, **kw)
+        _, i0 = e.reset(seed=4)
+        out = [0] if "verdict" in i0 else []
+        for k in range(1, 101):
+            if "verdict" in e.step(np.array([0.0], np.float32))[4]:
+                out.append(k)
+        return out
+
+    assert verdict_steps(verdict="end") == [100] and verdict_steps(verdict="off") == []
+    with pytest.raises(InputError, match="verdict must be one of step, end, off"):
+        gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid", verdict="always")
+
+
+@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor is not there yet")
+def test_registered_environment_pays_a_monitor_reward_by_the_monitor() -> None:
+    """reward = robustness: 0 on every step, the whole trace's robustness on the last (as the wrapper)."""
+    import mitlc.gym as mg
+
+    spec = load_spec("pendulum/p2_avoid")
+    env = mg.MitlPlantEnv(compile_spec(spec, CompileOptions.from_spec(spec, reward="robustness")))
+    env.reset(seed=4)
+    rewards, done = [], False
+    while not done:
+        _, r, term, trunc, info = env.step(np.array([2.5], np.float32))
+        rewards.append(r)
+        done = term or trunc
+    assert rewards[:-1] == [0.0] * 99
+    assert rewards[-1] == info["verdict"]["robustness"] < 0
 
 
 def test_registered_environment_passes_sb3s_checker() -> None:
