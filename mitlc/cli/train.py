@@ -464,10 +464,11 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
 @click.option(
     "--policy",
     "policy_dirs",
-    type=click.Path(file_okay=False, exists=True),
+    type=click.Path(exists=True),
     required=True,
     multiple=True,
-    help="Directory written by 'mitlc train'; repeat to run HyRL policies learned separately "
+    help="Directory written by 'mitlc train', or a Stable-Baselines3 model .zip trained on a mitlc "
+    "environment (with --spec; needs the sb3 extra); repeat to run HyRL policies learned separately "
     "composed on --spec's combined automaton.",
 )
 @click.option(
@@ -475,7 +476,8 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     "spec_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Spec (file or shipped name) to judge by and start from (default: the training spec).",
+    help="Spec (file or shipped name) to judge by and start from (default: the training spec; "
+    "an SB3 model: the spec it was trained on, required).",
 )
 @click.option(
     "--rollouts",
@@ -491,7 +493,7 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     "plot_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Write the figure here (default DIR/simulate.png).",
+    help="Write the figure here (default DIR/simulate.png; an SB3 model: only when given).",
 )
 @click.option(
     "--trace",
@@ -511,6 +513,9 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
     from mitlc.learn.policy import load_sacpn
     from mitlc.learn.sacpn import read_meta
 
+    if any(Path(p).is_file() for p in policy_dirs):  # a Stable-Baselines3 model (mitlc.gym.Sb3Policy)
+        _simulate_sb3(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path)
+        return
     policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
     if not ckpt.is_file():
@@ -533,23 +538,41 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
     agent = load_sacpn(ckpt, meta, spec)
     n = rollouts or agent.runs
     if agent.sim.settable:
-        rng = np.random.default_rng(seed)
-        x0 = np.empty((n, len(agent.init_ranges)))
-        for i, (lo, hi) in enumerate(agent.init_ranges):
-            x0[:, i] = rng.uniform(lo, hi, n)
+        x0 = _draw_starts(agent.init_ranges, n, seed)
     else:  # a Gymnasium plant starts where its reset puts it: one seeded stream per rollout
         x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
     ro = agent.rollout(x0)
+    res = _report(spec, ro, x0, agent, trace_path)
+    atomic_write(
+        plot_path or Path(policy_dir) / "simulate.png",
+        _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"),
+    )
+
+
+def _draw_starts(init_ranges, n: int, seed: int) -> np.ndarray:
+    """``n`` initial states ``(n, vars)`` drawn uniformly from the init box, seeded."""
+    rng = np.random.default_rng(seed)
+    x0 = np.empty((n, len(init_ranges)))
+    for i, (lo, hi) in enumerate(init_ranges):
+        x0[:, i] = rng.uniform(lo, hi, n)
+    return x0
+
+
+def _report(spec, ro, x0: np.ndarray, policy, trace_path):
+    """Judge rollouts by the monitor, print a line per rollout and the count that satisfy, and write
+    them as traces; ``policy`` is what rolled them out (its ``plant``, ``runs`` and ``runtime``: a
+    SACPN agent or a :class:`mitlc.gym.Sb3Policy`). The monitor's result."""
     res = _judge(spec, ro)
-    names = agent.plant.state_names
-    net = agent.rs.net
+    n = ro.states.shape[0]
+    names = policy.plant.state_names
+    net = policy.runtime.net
     # the net's own record of violations (violations = permanent | counted): final tokens
     watched = [
         i
         for i, p in enumerate(net.places)
         if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))
     ]
-    final = agent.runtime.trace_markings(ro.codes)[:, -1] if watched else None
+    final = policy.runtime.trace_markings(ro.codes)[:, -1] if watched else None
     for i in range(n):
         start = ", ".join(f"{v}={x0[i, j]:.3f}" for j, v in enumerate(names))
         verdict = "satisfied" if res.satisfied[i] else f"VIOLATED at t={res.violation_time[i]:.2f} s ({res.failing[i]})"
@@ -558,7 +581,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
             marked = [f"{net.places[j].name}={int(final[i, j])}" for j in watched if final[i, j]]
             record = f"; net records {', '.join(marked) if marked else 'no violation'}"
         click.echo(
-            f"rollout {i:3d} (run {i % agent.runs:3d}, {start}): {verdict}; "
+            f"rollout {i:3d} (run {i % policy.runs:3d}, {start}): {verdict}; "
             f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}"
         )
     click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
@@ -572,7 +595,39 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
             cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
             write_trace(p, t, cols, {"u": ro.actions[i]})
         click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
-    atomic_write(
-        plot_path or Path(policy_dir) / "simulate.png",
-        _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"),
-    )
+    return res
+
+
+def _simulate_sb3(paths, spec_path, rollouts, seed, plot_path, trace_path) -> None:
+    """``simulate`` of a Stable-Baselines3 model: rolled out on --spec's plant by :class:`mitlc.gym.Sb3Policy`,
+    judged and reported as a SACPN policy is."""
+    path = paths[0]
+    if len(paths) > 1:
+        raise InputError("only HyRL policies (classical criteria) run composed; give one policy", file="--policy")
+    if Path(path).suffix.lower() != ".zip":
+        raise InputError(
+            "a policy is a directory written by 'mitlc train' or a Stable-Baselines3 model .zip",
+            file=f"--policy {path}",
+        )
+    if trace_path is not None and Path(trace_path).suffix.lower() not in (".csv", ".npz"):
+        raise InputError("a trace is written as .csv or .npz", file=f"--trace {trace_path}")
+    if spec_path is None:
+        raise InputError(
+            "a Stable-Baselines3 model does not record its spec: give the one it was trained on", file="--spec"
+        )
+    try:
+        from mitlc.gym import load_sb3
+    except ImportError:  # no Gymnasium
+        raise InputError(
+            "loading a Stable-Baselines3 model needs Stable-Baselines3: pip install 'mitlc[sb3]'", file=path
+        ) from None
+    spec = _load(spec_path)
+    for w in spec.warnings:
+        click.echo(w, err=True)
+    policy = load_sb3(path, spec)
+    n = rollouts or policy.runs
+    x0 = _draw_starts(policy.init_ranges, n, seed)
+    ro = policy.rollout(x0)
+    res = _report(spec, ro, x0, policy, trace_path)
+    if plot_path is not None:
+        atomic_write(plot_path, _rollout_png(policy, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"))

@@ -142,6 +142,10 @@ def load_sacpn(ckpt: str | Path, meta: dict[str, Any], spec: Spec | None = None)
 
 def load_policy(directory: str | Path) -> Policy:
     """The policy ``mitlc train --out DIRECTORY`` saved (its ``params.npz``), SACPN or HyRL."""
+    if Path(directory).is_file() and Path(directory).suffix.lower() == ".zip":  # mitlc.gym, a later stage
+        raise InputError(
+            "a Stable-Baselines3 model: mitlc.gym.load_sb3(path, spec) loads it as a Policy", file=str(directory)
+        )
     ckpt = Path(directory) / PARAMS
     if not ckpt.is_file():
         raise InputError(f"no {PARAMS} in {directory} (train first with 'mitlc train --out DIR')", file=str(directory))
