@@ -134,7 +134,8 @@ def test_simulate_judges_an_sb3_model_and_check_reads_its_trace(models, tmp_path
         assert m[7] == f"{v['robustness']:+.3f}" and m[8] == f"{ret:.1f}"
         verdicts.append((v["satisfied"], v["robustness"]))
     satisfied = sum(s for s, _ in verdicts)
-    assert lines[6] == f"{satisfied}/6 rollouts satisfy G[0,0.2] kappa"
+    where = "fresh starts drawn from the initial set, seed 0"
+    assert lines[6] == f"{satisfied}/6 rollouts satisfy G[0,0.2] kappa ({where})"
     assert lines[7] == f"wrote 6 traces: {tmp_path / 'ro_000.csv'} .. {tmp_path / 'ro_005.csv'}"
     for i, (sat, rob) in enumerate(verdicts):
         c = runner.invoke(main, ["check", str(models["spec"]), str(tmp_path / f"ro_{i:03d}.csv")])

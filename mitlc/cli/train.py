@@ -542,7 +542,9 @@ def simulate(policy_dirs, spec_path, rollouts, seed, plot_path, trace_path) -> N
     else:  # a Gymnasium plant starts where its reset puts it: one seeded stream per rollout
         x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
     ro = agent.rollout(x0)
-    res = _report(spec, ro, x0, agent, trace_path)
+    res = _print_rollouts(spec, ro, x0, agent)
+    click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
+    _write_traces(ro, agent.plant.state_names, trace_path)
     atomic_write(
         plot_path or Path(policy_dir) / "simulate.png",
         _rollout_png(agent, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"),
@@ -558,12 +560,11 @@ def _draw_starts(init_ranges, n: int, seed: int) -> np.ndarray:
     return x0
 
 
-def _report(spec, ro, x0: np.ndarray, policy, trace_path):
-    """Judge rollouts by the monitor, print a line per rollout and the count that satisfy, and write
-    them as traces; ``policy`` is what rolled them out (its ``plant``, ``runs`` and ``runtime``: a
-    SACPN agent or a :class:`mitlc.gym.Sb3Policy`). The monitor's result."""
+def _print_rollouts(spec, ro, x0: np.ndarray, policy):
+    """Judge rollouts by the monitor and print a line per rollout; ``policy`` is what rolled them out
+    (its ``plant``, ``runs`` and ``runtime``: a SACPN agent or a :class:`mitlc.gym.Sb3Policy`). The
+    monitor's result."""
     res = _judge(spec, ro)
-    n = ro.states.shape[0]
     names = policy.plant.state_names
     net = policy.runtime.net
     # the net's own record of violations (violations = permanent | counted): final tokens
@@ -573,7 +574,7 @@ def _report(spec, ro, x0: np.ndarray, policy, trace_path):
         if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))
     ]
     final = policy.runtime.trace_markings(ro.codes)[:, -1] if watched else None
-    for i in range(n):
+    for i in range(ro.states.shape[0]):
         start = ", ".join(f"{v}={x0[i, j]:.3f}" for j, v in enumerate(names))
         verdict = "satisfied" if res.satisfied[i] else f"VIOLATED at t={res.violation_time[i]:.2f} s ({res.failing[i]})"
         record = ""
@@ -584,23 +585,28 @@ def _report(spec, ro, x0: np.ndarray, policy, trace_path):
             f"rollout {i:3d} (run {i % policy.runs:3d}, {start}): {verdict}; "
             f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}"
         )
-    click.echo(f"{int(res.satisfied.sum())}/{n} rollouts satisfy {spec.monitor_formula}")
-    if trace_path is not None:
-        from mitlc.monitor.trace import write_trace
-
-        base = Path(trace_path)
-        paths = [base] if n == 1 else [base.with_name(f"{base.stem}_{i:03d}{base.suffix}") for i in range(n)]
-        t = np.arange(ro.states.shape[1]) * ro.dt
-        for i, p in enumerate(paths):
-            cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
-            write_trace(p, t, cols, {"u": ro.actions[i]})
-        click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
     return res
+
+
+def _write_traces(ro, names, trace_path) -> None:
+    """Each rollout as a trace ``mitlc check`` reads (``--trace``), and a line saying where."""
+    if trace_path is None:
+        return
+    from mitlc.monitor.trace import write_trace
+
+    n = ro.states.shape[0]
+    base = Path(trace_path)
+    paths = [base] if n == 1 else [base.with_name(f"{base.stem}_{i:03d}{base.suffix}") for i in range(n)]
+    t = np.arange(ro.states.shape[1]) * ro.dt
+    for i, p in enumerate(paths):
+        cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
+        write_trace(p, t, cols, {"u": ro.actions[i]})
+    click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
 
 
 def _simulate_sb3(paths, spec_path, rollouts, seed, plot_path, trace_path) -> None:
     """``simulate`` of a Stable-Baselines3 model: rolled out on --spec's plant by :class:`mitlc.gym.Sb3Policy`,
-    judged and reported as a SACPN policy is."""
+    judged, printed and written as traces by the same functions as a SACPN policy."""
     path = paths[0]
     if len(paths) > 1:
         raise InputError("only HyRL policies (classical criteria) run composed; give one policy", file="--policy")
@@ -628,6 +634,10 @@ def _simulate_sb3(paths, spec_path, rollouts, seed, plot_path, trace_path) -> No
     n = rollouts or policy.runs
     x0 = _draw_starts(policy.init_ranges, n, seed)
     ro = policy.rollout(x0)
-    res = _report(spec, ro, x0, policy, trace_path)
+    res = _print_rollouts(spec, ro, x0, policy)
+    k = int(res.satisfied.sum())
+    where = f"fresh starts drawn from the initial set, seed {seed}"
+    click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
+    _write_traces(ro, policy.plant.state_names, trace_path)
     if plot_path is not None:
-        atomic_write(plot_path, _rollout_png(policy, ro, res.satisfied, f"{int(res.satisfied.sum())}/{n} satisfy"))
+        atomic_write(plot_path, _rollout_png(policy, ro, res.satisfied, f"{k}/{n} satisfy"))
