@@ -11,15 +11,19 @@ Which markings: those that agree with the real one on the parts the state and th
 (the region sub-nets, whose place is the region ``x`` lies in, and the timeline, whose place is
 the clock's phase) and differ anywhere else (the formula's memory: done and recurrence places,
 violation records). From each, the next marking and the reward are the net's own for ``x'`` at
-the real clock (the wrapper's tables, :meth:`mitlc.learn.runtime.NetRuntime.sample_stepper`). A
+the real clock (the environment's tables, :attr:`mitlc.gym.MitlNetEnv.marking_codes`). A
 net with timed obligations (nested intervals) has no such tables and is refused, as is a
 reward paid by the monitor (its value depends on the whole trace, not on the marking).
 
-Use it with the wrapper's flat observations (``marking_obs="box"``: the environment's
-observation, then the marking, then the clocks) and hand the wrapper to the buffer::
+Use it with an environment of :mod:`mitlc.gym` (a :class:`~mitlc.gym.MitlNetEnv`: the
+:class:`~mitlc.gym.MitlRewardWrapper` of any environment, or one of mitlc's plants registered
+as ``mitlc/Pendulum-v0``, ``mitlc/MassDamper-v0``) with flat observations (``marking_obs="box"``:
+the environment's observation, then the marking, then the clocks), and hand it to the buffer
+(Gymnasium's wrappers around it, such as those ``gymnasium.make`` adds, are looked through)::
 
     env = MitlRewardWrapper(gym.make("Pendulum-v1"), "pendulum/p4_alternate", pendulum_v1_state,
                             marking_obs="box", verdict="off", truncate_at_horizon=True)
+    # or: env = gym.make("mitlc/Pendulum-v0", spec="pendulum/p4_alternate", marking_obs="box")
     model = SAC("MlpPolicy", env, replay_buffer_class=CounterfactualReplayBuffer,
                 replay_buffer_kwargs={"wrapper": env})
 
@@ -30,8 +34,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from mitlc.errors import InputError
 
@@ -40,20 +44,61 @@ try:
 except ImportError as exc:  # pragma: no cover - the message names the extra
     raise ImportError("mitlc.crm needs Stable-Baselines3: pip install 'mitlc[sb3]'") from exc
 
-from mitlc.gym import MitlRewardWrapper
+from mitlc.gym import MitlNetEnv
 
-__all__ = ["CounterfactualReplayBuffer", "counterfactual_codes"]
+__all__ = ["CounterfactualReplayBuffer", "counterfactual_codes", "find_net_env"]
 
 
-def counterfactual_codes(wrapper: MitlRewardWrapper) -> dict[int, np.ndarray]:
-    """For every marking code of the wrapper's net, the other codes that agree with it on the
-    region and timeline sub-nets (the markings the same state and clock allow)."""
-    rt = wrapper.runtime
-    marking_of = wrapper._marking_of  # noqa: SLF001 - the wrapper's code -> marking table
-    assert marking_of is not None
+WHERE = "CounterfactualReplayBuffer(wrapper=)"
+"""What the buffer's errors name: its ``wrapper=`` argument."""
+
+
+def find_net_env(env: Any) -> MitlNetEnv:
+    """The :class:`~mitlc.gym.MitlNetEnv` (a :class:`~mitlc.gym.MitlRewardWrapper` or
+    :class:`~mitlc.gym.MitlPlantEnv`) in ``env``: ``env`` itself, or the one inside Gymnasium's
+    wrappers (``TimeLimit``, ``OrderEnforcing``, ``PassiveEnvChecker`` that ``gymnasium.make`` adds)
+    or a one-environment ``DummyVecEnv``."""
+    seen = env
+    for _ in range(100):  # a chain of wrappers, never a cycle
+        if isinstance(seen, MitlNetEnv):
+            return seen
+        inner = getattr(seen, "envs", None)  # a vectorized environment of one
+        if isinstance(inner, list) and len(inner) == 1:
+            seen = inner[0]
+        elif isinstance(seen, gym.Wrapper):
+            seen = seen.env
+        else:
+            break
+    raise InputError(
+        "wrapper must be the environment the learner steps, a MitlRewardWrapper or a MitlPlantEnv "
+        f"(gymnasium.make('mitlc/Pendulum-v0', ...)), or a Gymnasium wrapper of one; got {_describe(env)}",
+        file=WHERE,
+    )
+
+
+def _describe(env: Any) -> str:
+    """``TimeLimit<OrderEnforcing<CartPoleEnv>>``: the classes of a chain of wrappers."""
+    names: list[str] = []
+    seen = env
+    while isinstance(seen, gym.Wrapper) and len(names) < 10:
+        names.append(type(seen).__name__)
+        seen = seen.env
+    names.append(type(seen).__name__)
+    return "<".join(names) + ">" * (len(names) - 1)
+
+
+def counterfactual_codes(env: Any) -> dict[int, np.ndarray]:
+    """For every marking code of the environment's net (a :class:`~mitlc.gym.MitlNetEnv`, or a
+    Gymnasium wrapper of one), the other codes that agree with it on the region and timeline
+    sub-nets (the markings the same state and clock allow)."""
+    net_env = find_net_env(env)
+    codes = net_env.marking_codes
+    if codes is None:
+        raise InputError(_untabulated(net_env), file=WHERE)
+    marking_of = codes.markings
     fixed = [
         i
-        for s in rt.net.subnets
+        for s in net_env.runtime.net.subnets
         if s.role in ("region", "timeline")
         for i in np.asarray(s.places, dtype=np.intp).tolist()
     ]
@@ -64,11 +109,25 @@ def counterfactual_codes(wrapper: MitlRewardWrapper) -> dict[int, np.ndarray]:
     return {c: np.array([o for o in groups[k.tobytes()] if o != c], dtype=np.int64) for c, k in enumerate(keys)}
 
 
+def _untabulated(env: MitlNetEnv) -> str:
+    """Why a net has no marking codes to step one sample at a time."""
+    rs = env.reward_system
+    if rs.paid_by_monitor:
+        return f"reward {rs.options.reward} is paid by the monitor: it has no value per marking"
+    if rs.timed:
+        return "counterfactual markings need the net tabulated without timed obligations (nested intervals)"
+    if env.runtime.counters.size:
+        return "counterfactual markings need a net without counting places (violations = counted)"
+    return "counterfactual markings need the net tabulated: this one is too large for its tables"
+
+
 class CounterfactualReplayBuffer(ReplayBuffer):
     """A :class:`stable_baselines3.common.buffers.ReplayBuffer` that adds, with each real
     transition, the transition of every counterfactual marking (module text). ``wrapper`` is
-    the :class:`~mitlc.gym.MitlRewardWrapper` the learner steps (``marking_obs="box"``); the other
-    arguments are the buffer's own. :attr:`added` counts the counterfactual transitions stored.
+    the environment the learner steps, with ``marking_obs="box"``: a
+    :class:`~mitlc.gym.MitlRewardWrapper`, a :class:`~mitlc.gym.MitlPlantEnv` (``gymnasium.make(
+    "mitlc/Pendulum-v0", ...)``), or Gymnasium's wrappers of one; the other arguments are the
+    buffer's own. :attr:`added` counts the counterfactual transitions stored.
     """
 
     def __init__(
@@ -81,28 +140,24 @@ class CounterfactualReplayBuffer(ReplayBuffer):
         optimize_memory_usage: bool = False,
         handle_timeout_termination: bool = True,
         *,
-        wrapper: MitlRewardWrapper,
+        wrapper: Any,
     ) -> None:
-        if not isinstance(wrapper, MitlRewardWrapper):
-            raise InputError(f"wrapper must be the MitlRewardWrapper the learner steps, got {type(wrapper).__name__}")
-        if wrapper.marking_obs != "box":
-            raise InputError("counterfactual markings need the wrapper's flat observations: marking_obs='box'")
-        base = wrapper.env.observation_space
-        if not isinstance(base, spaces.Box) or len(base.shape) != 1:
-            raise InputError(f"counterfactual markings need an environment with flat Box observations, got {base}")
-        if wrapper.reward_system.paid_by_monitor:
+        env = find_net_env(wrapper)
+        if env.marking_obs != "box":
             raise InputError(
-                f"reward {wrapper.reward_system.options.reward} is paid by the monitor: it has no value per marking"
+                "counterfactual markings need the environment's flat observations: marking_obs='box'", file=WHERE
             )
-        step1 = wrapper._step1  # noqa: SLF001 - the wrapper's one-sample step on the tables
-        if step1 is None:
-            raise InputError(
-                "counterfactual markings need the net tabulated without timed obligations (nested intervals)"
-            )
+        if env.reward_system.paid_by_monitor or env.marking_codes is None:
+            raise InputError(_untabulated(env), file=WHERE)
+        codes = env.marking_codes
         if n_envs != 1:
-            raise InputError(f"counterfactual markings are added for one environment (n_envs=1), got n_envs={n_envs}")
+            raise InputError(
+                f"counterfactual markings are added for one environment (n_envs=1), got n_envs={n_envs}", file=WHERE
+            )
         if optimize_memory_usage:
-            raise InputError("counterfactual markings need optimize_memory_usage=False (next observations are stored)")
+            raise InputError(
+                "counterfactual markings need optimize_memory_usage=False (next observations are stored)", file=WHERE
+            )
         super().__init__(
             buffer_size,
             observation_space,
@@ -112,14 +167,13 @@ class CounterfactualReplayBuffer(ReplayBuffer):
             optimize_memory_usage=optimize_memory_usage,
             handle_timeout_termination=handle_timeout_termination,
         )
-        self.wrapper = wrapper
-        self._step1 = step1
-        self._reward_of: np.ndarray = wrapper._reward_of  # noqa: SLF001
-        assert wrapper._marking_of is not None  # noqa: SLF001 - a tabulated net (step1 is not None)
-        self._marking_of: np.ndarray = wrapper._marking_of  # noqa: SLF001
-        self._others = counterfactual_codes(wrapper)
-        self._base_dim = int(spaces.flatdim(base))
-        self._n_places = len(wrapper.place_names)
+        self.wrapper = env
+        self._step1 = codes.step
+        self._reward_of: np.ndarray = codes.rewards
+        self._marking_of: np.ndarray = codes.markings
+        self._others = counterfactual_codes(env)
+        self._base_dim = env.marking_offset
+        self._n_places = len(env.place_names)
         self._code_of = {m.tobytes(): c for c, m in enumerate(np.asarray(self._marking_of, dtype=np.int64))}
         self.added = 0
 
@@ -140,7 +194,7 @@ class CounterfactualReplayBuffer(ReplayBuffer):
             others = self._others.get(code, ()) if code is not None else ()
             if not len(others):
                 continue
-            x_next = self.wrapper.state(next_obs[i, :b]).tolist()
+            x_next = self.wrapper.flat_state(next_obs[i, :b]).tolist()
             tau = float(infos[i]["tau"])
             for c in others:
                 c = int(c)

@@ -102,3 +102,94 @@ def test_sac_learns_with_the_buffer_briefly() -> None:
     )
     model.learn(120)
     assert model.replay_buffer.added >= 120 and model.replay_buffer.pos == 120 + model.replay_buffer.added
+
+
+def _memory_size(rs) -> int:
+    """How many markings the net can be in at one state and clock: every combination of one place
+    in each sub-net that is neither a region net nor the timeline (the formula's memory)."""
+    return int(np.prod([len(s.places) for s in rs.net.subnets if s.role not in ("region", "timeline")]))
+
+
+@pytest.mark.parametrize("violations", ["off", "permanent"])
+def test_the_registered_environment_fills_the_buffer(violations: str) -> None:
+    """gymnasium.make("mitlc/Pendulum-v0") (wrapped in OrderEnforcing and PassiveEnvChecker) takes the
+    buffer as the wrapper does: with each real step, one transition per other memory the net allows,
+    stepped and paid by the net at the real next state."""
+    import mitlc.gym  # noqa: F401 - registers the environments
+
+    spec = load_spec("pendulum/p4_alternate")
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=violations))
+    env = gym.make("mitlc/Pendulum-v0", spec=rs, marking_obs="box", verdict="off")
+    base = env.unwrapped
+    assert type(env).__name__ != "MitlPlantEnv" and base.marking_offset == 2
+    per_step = _memory_size(rs) - 1
+    assert per_step == (1 if violations == "off" else 3)
+    buf = CounterfactualReplayBuffer(10_000, env.observation_space, env.action_space, device="cpu", wrapper=env)
+    rt = NetRuntime(rs, dt=base.dt, steps=base.steps)
+    p, b = len(base.place_names), base.marking_offset
+    env.action_space.seed(5)
+    obs, _ = env.reset(seed=5)
+    for k in range(1, 41):
+        a = env.action_space.sample()
+        nxt, r, term, trunc, info = env.step(a)
+        before = buf.pos
+        buf.add(obs[None], nxt[None], a[None], np.array([r]), np.array([term]), [info])
+        assert buf.pos - before == 1 + per_step  # the real transition, then the counterfactual ones
+        rows = range(before + 1, buf.pos)
+        starts = {tuple(buf.observations[i, 0, b : b + p].astype(int)) for i in rows}
+        real = tuple(obs[b : b + p].astype(int))
+        assert len(starts) == per_step and real not in starts
+        for i in rows:
+            m = buf.observations[i, 0, b : b + p].astype(np.int64)[None]
+            m1 = buf.next_observations[i, 0, b : b + p].astype(np.int64)[None]
+            np.testing.assert_array_equal(buf.observations[i, 0, :b], obs[:b])  # the same real state
+            np.testing.assert_array_equal(m1, rt.step(m, nxt[None, :b].astype(float), k * base.dt))
+            assert buf.rewards[i, 0] == pytest.approx(float(rt.reward(m, m1)[0]), abs=1e-6)
+            for s in rs.net.subnets:  # the region the state decides is the real one
+                if s.role == "region":
+                    assert [m[0, j] for j in s.places] == [real[j] for j in s.places]
+        obs = nxt
+    assert buf.added == 40 * per_step
+
+
+def test_the_buffer_names_its_wrapper_argument() -> None:
+    """A wrong environment is named by its classes, and the error by the buffer's argument."""
+    import mitlc.gym  # noqa: F401
+
+    env = gym.make("mitlc/Pendulum-v0", spec="pendulum/p4_alternate", marking_obs="box")
+    cart = gym.make("CartPole-v1")
+    with pytest.raises(InputError) as err:
+        CounterfactualReplayBuffer(100, env.observation_space, env.action_space, device="cpu", wrapper=cart)
+    assert str(err.value) == (
+        "CounterfactualReplayBuffer(wrapper=): error: wrapper must be the environment the learner steps, "
+        "a MitlRewardWrapper or a MitlPlantEnv (gymnasium.make('mitlc/Pendulum-v0', ...)), or a Gymnasium "
+        "wrapper of one; got TimeLimit<OrderEnforcing<PassiveEnvChecker<CartPoleEnv>>>"
+    )
+    d = gym.make("mitlc/Pendulum-v0", spec="pendulum/p4_alternate")
+    with pytest.raises(InputError, match=r"^CounterfactualReplayBuffer\(wrapper=\): error: .*marking_obs='box'"):
+        CounterfactualReplayBuffer(100, d.observation_space, d.action_space, device="cpu", wrapper=d)
+    spec = load_spec("pendulum/p4_alternate")
+    counted = compile_spec(spec, CompileOptions.from_spec(spec, violations="counted"))
+    c = gym.make("mitlc/Pendulum-v0", spec=counted, marking_obs="box")
+    with pytest.raises(InputError, match=r"counting places \(violations = counted\)"):
+        CounterfactualReplayBuffer(100, c.observation_space, c.action_space, device="cpu", wrapper=c)
+
+
+def test_sac_learns_on_the_registered_environment_briefly() -> None:
+    from stable_baselines3 import SAC
+
+    import mitlc.gym  # noqa: F401
+
+    env = gym.make("mitlc/Pendulum-v0", spec="pendulum/p4_alternate", marking_obs="box", verdict="off")
+    model = SAC(
+        "MlpPolicy",
+        env,
+        learning_starts=40,
+        batch_size=32,
+        seed=0,
+        device="cpu",
+        replay_buffer_class=CounterfactualReplayBuffer,
+        replay_buffer_kwargs={"wrapper": env},
+    )
+    model.learn(100)
+    assert model.replay_buffer.added == 100 and model.replay_buffer.pos == 200

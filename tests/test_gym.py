@@ -31,6 +31,12 @@ P5 = SPECS / "p5_timed_visit.mitl"
 PENDULUM_DT = 0.05  # Gymnasium's Pendulum-v1: env.unwrapped.dt
 HAS_MONITOR = importlib.util.find_spec("mitlc.monitor") is not None
 
+UPRIGHT = (
+    "plant pendulum(u_max = 3)\ninit q in [-0.1, 0.1], qdot = 0\nhorizon 3\nprop kappa = abs(q) < 0.3\n"
+    "formula F G kappa\n"
+)
+"""A spec whose pendulum starts inside kappa, near the top."""
+
 # Warnings check_env gives for Pendulum-v1 itself, whatever wraps it.
 KNOWN_WARNINGS = ("is different from the unwrapped version", "symmetric and normalized space")
 
@@ -439,6 +445,70 @@ def test_registered_environments_of_mitlc_plants() -> None:
         gym.make("mitlc/MassDamper-v0")
 
 
+@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor is not there yet")
+def test_registered_environment_gives_the_monitors_verdict() -> None:
+    """info["verdict"] of mitlc/Pendulum-v0 is the monitor's on the episode's states so far (the online
+    monitor per step, the offline one's whole verdict at the horizon), with the wrapper's verdict= option."""
+    import mitlc.gym  # noqa: F401 - registers the environments
+    from mitlc.monitor.offline import monitor
+
+    up = parse_spec(UPRIGHT)
+    env = gym.make("mitlc/Pendulum-v0", spec=up)
+    base = env.unwrapped
+    obs, info = env.reset(seed=4)
+    states, infos, done = [base._x[0].copy()], [info], False  # noqa: SLF001 - the plant's float64 state
+    while not done:  # no input: it starts inside kappa near the top and falls out
+        obs, _, term, trunc, info = env.step(np.array([0.0], np.float32))
+        states.append(base._x[0].copy())  # noqa: SLF001
+        infos.append(info)
+        done = term or trunc
+    x = np.array(states)
+    assert x.shape == (101, 2) and np.array_equal(base.trace, x)
+    np.testing.assert_allclose(obs["obs"], x[-1], rtol=1e-6)  # the observation shows the same state
+    spec = base.mitl_spec
+    seen = set()
+    for k in range(100):  # every prefix, from the online monitor
+        res = monitor(spec, x[: k + 1], base.dt)
+        assert infos[k]["verdict"] == {"satisfied": bool(res.satisfied[0]), "robustness": float(res.robustness[0])}
+        seen.add(bool(res.satisfied[0]))
+    assert infos[0]["verdict"]["satisfied"] is True and seen == {True, False}  # F G kappa, then not
+    res = monitor(spec, x, base.dt)
+    last = infos[-1]["verdict"]
+    assert last["satisfied"] == bool(res.satisfied[0]) and last["robustness"] == float(res.robustness[0])
+    assert last["failing"] == res.failing[0] and last["violation_time"] == float(res.violation_time[0])
+    assert last["satisfied"] is False and last["failing"] == "F G kappa"
+
+    def verdict_steps(**kw) -> list[int]:
+        e = gym.make("mitlc/Pendulum-v0", spec=up, **kw)
+        _, i0 = e.reset(seed=4)
+        out = [0] if "verdict" in i0 else []
+        for k in range(1, 101):
+            if "verdict" in e.step(np.array([0.0], np.float32))[4]:
+                out.append(k)
+        return out
+
+    assert verdict_steps(verdict="end") == [100] and verdict_steps(verdict="off") == []
+    with pytest.raises(InputError, match="verdict must be one of step, end, off"):
+        gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid", verdict="always")
+
+
+@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor is not there yet")
+def test_registered_environment_pays_a_monitor_reward_by_the_monitor() -> None:
+    """reward = robustness: 0 on every step, the whole trace's robustness on the last (as the wrapper)."""
+    import mitlc.gym as mg
+
+    spec = load_spec("pendulum/p2_avoid")
+    env = mg.MitlPlantEnv(compile_spec(spec, CompileOptions.from_spec(spec, reward="robustness")))
+    env.reset(seed=4)
+    rewards, done = [], False
+    while not done:
+        _, r, term, trunc, info = env.step(np.array([2.5], np.float32))
+        rewards.append(r)
+        done = term or trunc
+    assert rewards[:-1] == [0.0] * 99
+    assert rewards[-1] == info["verdict"]["robustness"] < 0
+
+
 def test_registered_environment_passes_sb3s_checker() -> None:
     sb3 = pytest.importorskip("stable_baselines3", reason="Stable-Baselines3 is an optional extra")
     from stable_baselines3.common.env_checker import check_env as sb3_check
@@ -464,3 +534,90 @@ def test_dt_from_where_gymnasium_keeps_it() -> None:
     with pytest.raises(InputError, match=r"no 'dt' or 'tau' attribute and no metadata\['dt'\]"):
         MitlRewardWrapper(gym.make("MountainCarContinuous-v0"), spec, {"x": 0})
     assert MitlRewardWrapper(gym.make("MountainCarContinuous-v0"), spec, {"x": 0}, dt=1.0).dt == 1.0
+
+
+def test_registered_environment_starts_where_asked() -> None:
+    import mitlc.gym  # noqa: F401 - registers the environments
+
+    env = gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid", verdict="off")
+    obs, info = env.reset(seed=0, options={"x0": [0.1, -0.2]})
+    assert env.unwrapped.trace[0].tolist() == [0.1, -0.2]  # as given, to the bit
+    assert obs["obs"].tolist() == np.array([0.1, -0.2], np.float32).tolist() and info["marking"].tolist() == [1, 0, 0]
+    env.reset(options={"x0": np.array([4.0, 0.0])})  # an angle outside [-pi, pi) is wrapped
+    assert env.unwrapped.trace[0][0] == pytest.approx(4.0 - 2 * np.pi, abs=1e-15)
+    for bad in ([1.0], [0.0, np.nan], "up"):
+        with pytest.raises(InputError, match=r"options\['x0'\] must be 2 finite numbers \(q, qdot\), got "):
+            env.reset(options={"x0": bad})
+
+
+class _Feedback:
+    """A stand-in for a Stable-Baselines3 model: ``predict`` is a fixed state feedback ``u = -k q - d qdot``
+    read off the observation as a mitlc environment gives it (only the model's interface is used)."""
+
+    def __init__(self, space, k: float = 2.0, d: float = 0.5) -> None:
+        self.observation_space, self.k, self.d, self.calls = space, k, d, 0
+
+    def predict(self, obs, deterministic: bool = False):
+        assert deterministic
+        self.calls += 1
+        x = obs["obs"] if isinstance(obs, dict) else obs[:, :2]
+        assert x.dtype == np.float32 and x.shape == (1, 2)  # one row at a time, as the env shows it
+        return (-(self.k * x[:, :1] + self.d * x[:, 1:2])).astype(np.float32), None
+
+
+@pytest.mark.parametrize("marking_obs", ["dict", "box"])
+def test_sb3policy_rolls_out_what_the_environment_does(marking_obs: str) -> None:
+    """Sb3Policy with any object that has a model's observation_space and predict: its rollouts are the
+    registered environment's episodes from the same starts, states, inputs and rewards to the bit,
+    nested intervals' clocks included."""
+    import mitlc.gym as mg
+
+    spec = "pendulum/n3_bounded_response"
+    env = gym.make("mitlc/Pendulum-v0", spec=spec, marking_obs=marking_obs, verdict="end")
+    model = _Feedback(env.observation_space, k=3.0)
+    pol = mg.Sb3Policy(model, spec)
+    assert pol.n_clocks == 2 and pol.marking_obs == marking_obs and pol.runs == 1
+    x0 = np.array([[0.2, 0.0], [-1.0, 2.0], [2.9, -1.0]])
+    ro = pol.rollout(x0)
+    assert model.calls == 3 * pol.n_steps
+    for b in range(3):
+        obs, _ = env.reset(options={"x0": x0[b]})
+        us, rewards, done = [], [], False
+        while not done:
+            a, _ = model.predict(obs[None] if marking_obs == "box" else {k: v[None] for k, v in obs.items()}, True)
+            obs, r, term, trunc, info = env.step(a[0])
+            us.append(float(np.clip(a[0, 0], -pol.u_max, pol.u_max)))
+            rewards.append(r)
+            done = term or trunc
+        np.testing.assert_array_equal(ro.states[b], env.unwrapped.trace)
+        np.testing.assert_array_equal(ro.actions[b], us)
+        np.testing.assert_array_equal(ro.rewards[b], rewards)
+        if HAS_MONITOR:
+            from mitlc.monitor.offline import monitor
+
+            assert info["verdict"]["satisfied"] == bool(monitor(pol.spec, ro.states[b], ro.dt).satisfied[0])
+
+
+def test_sb3policy_refuses_what_it_cannot_roll_out() -> None:
+    import mitlc.gym as mg
+
+    env = gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid", marking_obs="box")
+    with pytest.raises(InputError, match="the model observes 5 numbers, and the plant's 2 with the marking make 4"):
+        mg.Sb3Policy(_Feedback(env.observation_space), "pendulum/p1_swing_up")
+    d = gym.make("mitlc/Pendulum-v0", spec="pendulum/p2_avoid")
+    with pytest.raises(InputError, match="the model observes 3 marking entries and 0 clocks, the spec's net has 2"):
+        mg.Sb3Policy(_Feedback(d.observation_space), "pendulum/p1_swing_up")
+    with pytest.raises(InputError, match="is not one a mitlc environment gives"):
+        mg.Sb3Policy(_Feedback(gym.spaces.Discrete(3)), "pendulum/p1_swing_up")
+    gym_spec = parse_spec(
+        "plant gym:Pendulum-v1\nstate q = atan2(obs[1], obs[0]), w = obs[2]\nhorizon 1\n"
+        "prop up = abs(q) < 0.5\nformula F G up\n"
+    )
+    with pytest.raises(InputError, match="is for plant gym:Pendulum-v1, a Gymnasium environment: an SB3 model"):
+        mg.Sb3Policy(_Feedback(env.observation_space), gym_spec)
+    # a wrapper of another observation: obs_of maps the plant's states to it
+    obs_of = lambda x: np.stack([np.cos(x[:, 0]), np.sin(x[:, 0]), x[:, 1]], axis=1)  # noqa: E731
+    space = gym.spaces.Box(-np.inf, np.inf, (3 + 2,), np.float32)
+    pol = mg.Sb3Policy(_Feedback(space), "pendulum/p1_swing_up", obs_of=obs_of)
+    o = pol.observation(np.array([[np.pi / 2, 1.0]]), np.array([[0, 1]]))
+    np.testing.assert_allclose(o, [[0.0, 1.0, 1.0, 0.0, 1.0]], atol=1e-7)

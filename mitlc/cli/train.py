@@ -505,10 +505,11 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
 @click.option(
     "--policy",
     "policy_dirs",
-    type=click.Path(file_okay=False, exists=True),
+    type=click.Path(exists=True),
     required=True,
     multiple=True,
-    help="Directory written by 'mitlc train'; repeat to run HyRL policies learned separately "
+    help="Directory written by 'mitlc train', or a Stable-Baselines3 model .zip trained on a mitlc "
+    "environment (with --spec; needs the sb3 extra); repeat to run HyRL policies learned separately "
     "composed on --spec's combined automaton.",
 )
 @click.option(
@@ -516,7 +517,8 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     "spec_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Spec (file or shipped name) to judge by and start from (default: the training spec).",
+    help="Spec (file or shipped name) to judge by and start from (default: the training spec; "
+    "an SB3 model: the spec it was trained on, required).",
 )
 @click.option(
     "--rollouts",
@@ -567,6 +569,9 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
     from mitlc.learn.policy import load_sacpn
     from mitlc.learn.sacpn import read_meta
 
+    if any(Path(p).is_file() for p in policy_dirs):  # a Stable-Baselines3 model (mitlc.gym.Sb3Policy)
+        _simulate_sb3(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_path)
+        return
     policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
     if not ckpt.is_file():
@@ -598,34 +603,11 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
     if starts == "train":  # the states mitlc train judged on: the checkpoint's evaluation streams
         x0 = agent.evaluation_states()
     elif agent.sim.settable:
-        rng = np.random.default_rng(seed)
-        x0 = np.empty((n, len(agent.init_ranges)))
-        for i, (lo, hi) in enumerate(agent.init_ranges):
-            x0[:, i] = rng.uniform(lo, hi, n)
+        x0 = _draw_starts(agent.init_ranges, n, seed)
     else:  # a Gymnasium plant starts where its reset puts it: one seeded stream per rollout
         x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
     ro = agent.rollout(x0)
-    res = _judge(spec, ro)
-    names = agent.plant.state_names
-    net = agent.rs.net
-    # the net's own record of violations (violations = permanent | counted): final tokens
-    watched = [
-        i
-        for i, p in enumerate(net.places)
-        if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))
-    ]
-    final = agent.runtime.trace_markings(ro.codes)[:, -1] if watched else None
-    for i in range(n):
-        start = ", ".join(f"{v}={x0[i, j]:.3f}" for j, v in enumerate(names))
-        verdict = "satisfied" if res.satisfied[i] else f"VIOLATED at t={res.violation_time[i]:.2f} s ({res.failing[i]})"
-        record = ""
-        if final is not None:
-            marked = [f"{net.places[j].name}={int(final[i, j])}" for j in watched if final[i, j]]
-            record = f"; net records {', '.join(marked) if marked else 'no violation'}"
-        click.echo(
-            f"rollout {i:3d} (run {i % agent.runs:3d}, {start}): {verdict}; "
-            f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}"
-        )
+    res = _print_rollouts(spec, ro, x0, agent)
     k = int(res.satisfied.sum())
     if starts == "train":
         where = "each run's evaluation start, as mitlc train judged" + _trained_on(meta, spec)
@@ -641,16 +623,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
                 f"from each run's evaluation start, as mitlc train judged: {int(judged.sum())}/{agent.runs} "
                 f"(success rate {judged.mean():.2f}; --starts train shows them)"
             )
-    if trace_path is not None:
-        from mitlc.monitor.trace import write_trace
-
-        base = Path(trace_path)
-        paths = [base] if n == 1 else [base.with_name(f"{base.stem}_{i:03d}{base.suffix}") for i in range(n)]
-        t = np.arange(ro.states.shape[1]) * ro.dt
-        for i, p in enumerate(paths):
-            cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
-            write_trace(p, t, cols, {"u": ro.actions[i]})
-        click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
+    _write_traces(ro, agent.plant.state_names, trace_path)
     if plot_path is not None:
         atomic_write(plot_path, _rollout_png(agent, ro, res.satisfied, f"{k}/{n} satisfy"))
 
@@ -658,3 +631,100 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
 def _trained_on(meta: dict, spec) -> str:
     """``''`` when ``spec`` is the one the policy was trained on, else a note that the verdicts are ``spec``'s."""
     return "" if spec.source == meta["spec_source"] else ", here by --spec"
+
+
+def _draw_starts(init_ranges, n: int, seed: int) -> np.ndarray:
+    """``n`` initial states ``(n, vars)`` drawn uniformly from the init box, seeded."""
+    rng = np.random.default_rng(seed)
+    x0 = np.empty((n, len(init_ranges)))
+    for i, (lo, hi) in enumerate(init_ranges):
+        x0[:, i] = rng.uniform(lo, hi, n)
+    return x0
+
+
+def _print_rollouts(spec, ro, x0: np.ndarray, policy):
+    """Judge rollouts by the monitor and print a line per rollout; ``policy`` is what rolled them out
+    (its ``plant``, ``runs`` and ``runtime``: a SACPN agent or a :class:`mitlc.gym.Sb3Policy`). The
+    monitor's result."""
+    res = _judge(spec, ro)
+    names = policy.plant.state_names
+    net = policy.runtime.net
+    # the net's own record of violations (violations = permanent | counted): final tokens
+    watched = [
+        i
+        for i, p in enumerate(net.places)
+        if p.kind == "counter" or p.name.startswith(("p_violated_", "p_late_", "p_failed_"))
+    ]
+    final = policy.runtime.trace_markings(ro.codes)[:, -1] if watched else None
+    for i in range(ro.states.shape[0]):
+        start = ", ".join(f"{v}={x0[i, j]:.3f}" for j, v in enumerate(names))
+        verdict = "satisfied" if res.satisfied[i] else f"VIOLATED at t={res.violation_time[i]:.2f} s ({res.failing[i]})"
+        record = ""
+        if final is not None:
+            marked = [f"{net.places[j].name}={int(final[i, j])}" for j in watched if final[i, j]]
+            record = f"; net records {', '.join(marked) if marked else 'no violation'}"
+        click.echo(
+            f"rollout {i:3d} (run {i % policy.runs:3d}, {start}): {verdict}; "
+            f"robustness {res.robustness[i]:+.3f}; return {ro.returns[i]:.1f}{record}"
+        )
+    return res
+
+
+def _write_traces(ro, names, trace_path) -> None:
+    """Each rollout as a trace ``mitlc check`` reads (``--trace``), and a line saying where."""
+    if trace_path is None:
+        return
+    from mitlc.monitor.trace import write_trace
+
+    n = ro.states.shape[0]
+    base = Path(trace_path)
+    paths = [base] if n == 1 else [base.with_name(f"{base.stem}_{i:03d}{base.suffix}") for i in range(n)]
+    t = np.arange(ro.states.shape[1]) * ro.dt
+    for i, p in enumerate(paths):
+        cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
+        write_trace(p, t, cols, {"u": ro.actions[i]})
+    click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
+
+
+def _simulate_sb3(paths, spec_path, rollouts, seed, starts, plot_path, trace_path) -> None:
+    """``simulate`` of a Stable-Baselines3 model: rolled out on --spec's plant by :class:`mitlc.gym.Sb3Policy`,
+    judged, printed and written as traces by the same functions as a SACPN policy."""
+    path = paths[0]
+    if len(paths) > 1:
+        raise InputError("only HyRL policies (classical criteria) run composed; give one policy", file="--policy")
+    if Path(path).suffix.lower() != ".zip":
+        raise InputError(
+            "a policy is a directory written by 'mitlc train' or a Stable-Baselines3 model .zip",
+            file=f"--policy {path}",
+        )
+    if trace_path is not None and Path(trace_path).suffix.lower() not in (".csv", ".npz"):
+        raise InputError("a trace is written as .csv or .npz", file=f"--trace {trace_path}")
+    if starts == "train":
+        raise InputError(
+            "a Stable-Baselines3 model keeps no training starts: judge it on fresh ones (--starts fresh)",
+            file="--starts",
+        )
+    if spec_path is None:
+        raise InputError(
+            "a Stable-Baselines3 model does not record its spec: give the one it was trained on", file="--spec"
+        )
+    try:
+        from mitlc.gym import load_sb3
+    except ImportError:  # no Gymnasium
+        raise InputError(
+            "loading a Stable-Baselines3 model needs Stable-Baselines3: pip install 'mitlc[sb3]'", file=path
+        ) from None
+    spec = _load(spec_path)
+    for w in spec.warnings:
+        click.echo(w, err=True)
+    policy = load_sb3(path, spec)
+    n = rollouts or policy.runs
+    x0 = _draw_starts(policy.init_ranges, n, seed)
+    ro = policy.rollout(x0)
+    res = _print_rollouts(spec, ro, x0, policy)
+    k = int(res.satisfied.sum())
+    where = f"fresh starts drawn from the initial set, seed {seed}"
+    click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
+    _write_traces(ro, policy.plant.state_names, trace_path)
+    if plot_path is not None:
+        atomic_write(plot_path, _rollout_png(policy, ro, res.satisfied, f"{k}/{n} satisfy"))

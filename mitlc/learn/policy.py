@@ -146,6 +146,10 @@ def load_policy(directory: str | Path) -> Policy:
 
     A plant from a plant file need not be registered: the folder's copy of the file is loaded
     (the code the training ran; a :class:`UserWarning` says when the original file differs now)."""
+    if Path(directory).is_file() and Path(directory).suffix.lower() == ".zip":  # mitlc.gym, a later stage
+        raise InputError(
+            "a Stable-Baselines3 model: mitlc.gym.load_sb3(path, spec) loads it as a Policy", file=str(directory)
+        )
     ckpt = Path(directory) / PARAMS
     if not ckpt.is_file():
         raise InputError(f"no {PARAMS} in {directory} (train first with 'mitlc train --out DIR')", file=str(directory))
