@@ -31,7 +31,7 @@ from mitlc.errors import MitlError, SpecError, SpecSyntaxError
 from mitlc.fileio import cache_root
 from mitlc.limits import MAX_SPEC_BYTES, MAX_TIME
 from mitlc.plants.base import PLANTS, Plant, StateVar
-from mitlc.plants.gym_env import GYM_PREFIX, ObsVar, env_info, gym_plant
+from mitlc.plants.gym_env import GYM_PREFIX, ObsVar, check_env_id, env_info, gym_plant
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
@@ -948,6 +948,10 @@ def _columns(index: dict[str, int]) -> Any:
 def _env_plant(tok: Token, params: list, state_lines: list) -> tuple[Plant, dict[str, float]]:
     """The plant of ``plant gym:ID(...)`` and its ``state`` lines (:mod:`mitlc.plants.gym_env`)."""
     env_id = str(tok)[len(GYM_PREFIX) :]
+    try:
+        check_env_id(env_id)  # first: 'gym:module:Env' would make Gymnasium import module
+    except MitlError as exc:
+        raise SpecError(exc.message, line=tok.line, column=tok.column, hint=exc.hint) from None
     values: dict[str, float] = {}
     for ptok, value in params:
         pname = str(ptok)
@@ -961,7 +965,7 @@ def _env_plant(tok: Token, params: list, state_lines: list) -> tuple[Plant, dict
     try:
         info = env_info(env_id, values)
     except MitlError as exc:
-        raise SpecError(exc.message, line=tok.line, column=tok.column) from None
+        raise SpecError(exc.message, line=tok.line, column=tok.column, hint=exc.hint) from None
     if dt_given is not None:
         if not dt_given > 0:
             raise SpecError(

@@ -1,0 +1,336 @@
+"""A spec never causes an import, and the disk cache is not code (issue 29, items 1 and 5).
+
+* ``plant gym:MODULE:ID`` made Gymnasium import MODULE (``gym:this:Foo-v0`` printed the Zen of
+  Python; an ``evilmod.py`` in the current folder ran under ``python -m mitlc``), from a spec file
+  or from a checkpoint's ``meta.spec_source``. Now refused at parse time, one located line, exit 2;
+  modules are imported only from ``--gym-module`` (and ``--plant-file``, entry points).
+* The parser's tables were a pickle in the cache folder, loaded on every command: now JSON data,
+  and read (like numba's kernel cache) only from files and folders that are the user's own.
+* CR-only line ends read as one line.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mitlc.cli.main import main
+from mitlc.plants import gym_env as G
+
+ROOT = Path(__file__).resolve().parents[1]
+SPECS = ROOT / "specs"
+
+EVIL = """\
+from pathlib import Path
+Path({marker!r}).write_text("imported")
+"""
+
+# A tiny Gymnasium environment of the user's, registered when its module is imported.
+MYENVS = """\
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+Path({marker!r}).write_text("imported")
+
+
+class Drift(gym.Env):
+    metadata = {{"render_modes": []}}
+    dt = 0.1
+
+    def __init__(self):
+        self.observation_space = gym.spaces.Box(-5.0, 5.0, (1,), dtype=np.float64)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (1,), dtype=np.float64)
+        self.x = 0.0
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.x = float(self.np_random.uniform(-1.0, 1.0))
+        return np.array([self.x]), {{}}
+
+    def step(self, action):
+        self.x = float(np.clip(self.x + self.dt * float(np.asarray(action).reshape(-1)[0]), -5.0, 5.0))
+        return np.array([self.x]), 0.0, False, False, {{}}
+
+
+gym.register(id="MyDrift-v0", entry_point=Drift)
+"""
+
+DRIFT_SPEC = """\
+plant gym:MyDrift-v0
+state x = obs[0]
+horizon 1
+prop near = abs(x) < 0.5
+formula F near
+"""
+
+
+@pytest.fixture(autouse=True)
+def _forget_gym_modules():
+    before = list(G.GYM_MODULES)
+    yield
+    G.GYM_MODULES[:] = before
+
+
+def _python(args: list[str], cwd: Path, extra_path: Path | None = None, **env: str) -> subprocess.CompletedProcess:
+    """``python -m mitlc ARGS`` in ``cwd`` (which Python then puts first on sys.path)."""
+    paths = [str(p) for p in (extra_path, ROOT) if p is not None]
+    full = {**os.environ, "PYTHONPATH": os.pathsep.join(paths), **env}
+    return subprocess.run(
+        [sys.executable, "-m", "mitlc", *args], cwd=cwd, env=full, capture_output=True, text=True, timeout=300
+    )
+
+
+def _error_lines(text: str) -> list[str]:
+    return [ln for ln in text.splitlines() if ": error:" in ln]
+
+
+# ---------------------------------------------------------------- a spec never causes an import
+
+
+def test_the_zen_of_python_is_not_printed(tmp_path: Path) -> None:
+    (tmp_path / "g.mitl").write_text("plant gym:this:Foo-v0\nformula F true\n")
+    r = _python(["compile", "g.mitl"], tmp_path)
+    assert r.returncode == 2
+    assert "Zen of Python" not in r.stdout + r.stderr and r.stdout == ""
+    lines = r.stderr.splitlines()
+    assert lines[0] == (
+        "g.mitl:1:7: error: 'gym:this:Foo-v0' would import the module 'this': a spec names registered Gymnasium "
+        "ids only, and never causes an import; write 'plant gym:Foo-v0' and pass --gym-module this to register "
+        "the module's environments"
+    )
+    assert lines[1:] == ["  plant gym:this:Foo-v0", "        ^"]
+
+
+def test_a_module_in_the_current_folder_is_not_imported(tmp_path: Path) -> None:
+    marker = tmp_path / "evil-ran"
+    (tmp_path / "evilmod.py").write_text(EVIL.format(marker=str(marker)))
+    (tmp_path / "g.mitl").write_text("# harmless?\nplant gym:evilmod:Foo-v0\nformula F true\n")
+    commands = (
+        ["compile", "g.mitl"],
+        ["check", "g.mitl", "t.csv", "--formula", "true"],
+        ["train", "--spec", "g.mitl", "--runs", "1", "--trials", "1", "-q"],
+    )
+    for args in commands:
+        r = _python(args, tmp_path)
+        assert r.returncode == 2, (args, r.stderr)
+        assert not marker.exists(), args
+        assert "Traceback" not in r.stderr
+    r = _python(["compile", "g.mitl"], tmp_path)
+    assert _error_lines(r.stderr) == [
+        "g.mitl:2:7: error: 'gym:evilmod:Foo-v0' would import the module 'evilmod': a spec names registered "
+        "Gymnasium ids only, and never causes an import; write 'plant gym:Foo-v0' and pass --gym-module evilmod "
+        "to register the module's environments"
+    ]
+
+
+def test_an_unknown_module_is_the_same_refusal_not_a_traceback(tmp_path: Path) -> None:
+    spec = tmp_path / "h.mitl"
+    spec.write_text("plant gym:nonexistent_mod:Foo-v0\nformula F true\n")
+    r = CliRunner().invoke(main, ["compile", str(spec)])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert _error_lines(r.output) == [
+        f"{spec}:1:7: error: 'gym:nonexistent_mod:Foo-v0' would import the module 'nonexistent_mod': a spec names "
+        "registered Gymnasium ids only, and never causes an import; write 'plant gym:Foo-v0' and pass --gym-module "
+        "nonexistent_mod to register the module's environments"
+    ]
+
+
+@pytest.mark.parametrize(
+    "env_id, says",
+    [
+        ("this:Foo-v0", "would import the module 'this'"),
+        ("a.b:Foo", "would import the module 'a.b'"),
+        (":Foo-v0", "':' would name a module to import"),
+        ("a:b:c", "':' would name a module to import"),
+        ("Foo-v0:", "':' would name a module to import"),
+        ("x" * 300, "longer than 200 characters"),
+    ],
+)
+def test_no_path_passes_a_module_id_to_gymnasium(env_id: str, says: str) -> None:
+    """open_env (gymnasium.make) and GymSimulator (gymnasium.make_vec) refuse such an id themselves."""
+    from mitlc.errors import InputError
+
+    with pytest.raises(InputError) as err:
+        G.check_env_id(env_id)
+    assert says in err.value.message and len(err.value.message) < 400
+    with pytest.raises(InputError):
+        G.open_env(env_id)
+    with pytest.raises(InputError):
+        G.GymSimulator(env_id, {}, (), {}, 1.0)
+    assert G.check_env_id("ALE/Pong-v5") == "ALE/Pong-v5"
+
+
+def _checkpoint(folder: Path, spec_source: str, plant: dict | None = None) -> Path:
+    """A hand-made params.npz whose meta carries ``spec_source`` (and ``plant``)."""
+    folder.mkdir()
+    meta = {
+        "kind": "sacpn",
+        "runs": 1,
+        "seed": 0,
+        "trial": 1,
+        "settings": {},
+        "rng_states": [],
+        "eval_rng_states": [],
+        "spec_source": spec_source,
+        "spec_path": "g.mitl",
+    }
+    if plant is not None:
+        meta["plant"] = plant
+    z = np.zeros(1)
+    np.savez(folder / "params.npz", xi=z, theta=z, returns=z, meta=np.array(json.dumps(meta)))
+    return folder
+
+
+def test_a_checkpoint_spec_never_imports(tmp_path: Path) -> None:
+    marker = tmp_path / "evil-ran"
+    (tmp_path / "evilmod.py").write_text(EVIL.format(marker=str(marker)))
+    _checkpoint(tmp_path / "ck", "plant gym:evilmod:Foo-v0\nstate x = obs[0]\nhorizon 1\nprop a = x < 1\nformula F a\n")
+    for args in (["simulate", "--policy", "ck"], ["train", "--resume", "ck", "--trials", "1", "-q"]):
+        r = _python(args, tmp_path)
+        assert r.returncode == 2, (args, r.stderr)
+        assert not marker.exists(), args
+        errors = _error_lines(r.stderr)
+        assert len(errors) == 1 and errors[0].startswith(
+            "g.mitl:1:7: error: 'gym:evilmod:Foo-v0' would import the module 'evilmod'"
+        ), (args, r.stderr)
+        assert "Traceback" not in r.stderr
+
+
+def test_a_checkpoint_plant_record_names_a_module_it_does_not_import(tmp_path: Path) -> None:
+    """A run trained with --gym-module records it; loading the run asks for the option again."""
+    marker = tmp_path / "evil-ran"
+    (tmp_path / "evilmod.py").write_text(EVIL.format(marker=str(marker)))
+    plant = {"name": "gym:EvilEnv-v0", "kind": "gym", "gym_modules": "evilmod"}
+    _checkpoint(tmp_path / "ck", "plant gym:EvilEnv-v0\nstate x = obs[0]\nprop a = x < 1\nformula F a\n", plant)
+    for args in (["simulate", "--policy", "ck"], ["train", "--resume", "ck", "--trials", "1", "-q"]):
+        r = _python(args, tmp_path)
+        assert r.returncode == 2 and not marker.exists(), (args, r.stderr)
+        assert r.stderr.splitlines()[0] == (
+            "ck/params.npz: error: the run's environment 'EvilEnv-v0' was registered by --gym-module evilmod in "
+            "its training: pass --gym-module evilmod again (a run folder never imports code)"
+        )
+    damaged = {"name": "gym:EvilEnv-v0", "kind": "gym", "gym_modules": "os;rm -rf"}
+    _checkpoint(tmp_path / "ck2", "plant gym:EvilEnv-v0\nformula F true\n", damaged)
+    r = CliRunner().invoke(main, ["simulate", "--policy", str(tmp_path / "ck2")])
+    assert r.exit_code == 2 and "its meta 'plant' record is not a plant record" in r.output
+
+
+def test_plant_file_errors_are_labelled_with_the_option() -> None:
+    r = CliRunner().invoke(main, ["plants", "--plant-file", "os:path"])
+    assert r.exit_code == 2
+    assert r.output.strip() == (
+        "--plant-file: error: os:path is not a mitlc Plant (nor a list of them, nor a function returning one)"
+    )
+
+
+@pytest.mark.parametrize(
+    "value, first",
+    [
+        (
+            "no_such_module_xyz",
+            "--gym-module no_such_module_xyz: error: cannot import module 'no_such_module_xyz': "
+            "no module named 'no_such_module_xyz'",
+        ),
+        ("envs/my.py", "--gym-module envs/my.py: error: not a module name (a dotted Python name such as mypkg.envs)"),
+        ("boom_mod_xyz", "--gym-module boom_mod_xyz: error: importing module 'boom_mod_xyz' failed: ValueError: boom"),
+        ("exit_mod_xyz", "--gym-module exit_mod_xyz: error: importing module 'exit_mod_xyz' failed: SystemExit: 3"),
+    ],
+)
+def test_a_bad_gym_module_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, value: str, first: str) -> None:
+    (tmp_path / "boom_mod_xyz.py").write_text("raise ValueError('boom')\n")
+    (tmp_path / "exit_mod_xyz.py").write_text("import sys\nsys.exit(3)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for command in (["compile", "pendulum/p2_avoid"], ["plants"], ["check", "pendulum/p2_avoid", "t.csv"]):
+        r = CliRunner().invoke(main, [*command, "--gym-module", value])
+        assert r.exit_code == 2 and "Traceback" not in r.output
+        assert r.output.splitlines()[0] == first
+    assert value not in G.GYM_MODULES
+
+
+def test_every_command_with_plant_file_takes_gym_module() -> None:
+    import click
+
+    ctx = click.Context(main)
+    commands = {name: main.get_command(ctx, name) for name in main.list_commands(ctx)}
+    with_plant_file = [
+        n for n, c in commands.items() if c is not None and any(p.name == "plant_file" for p in c.params)
+    ]
+    assert {"compile", "check", "train", "simulate", "sweep", "plants"} <= set(with_plant_file)
+    for name in with_plant_file:
+        cmd = commands[name]
+        assert cmd is not None and any(p.name == "gym_module" for p in cmd.params), name
+
+
+@pytest.fixture
+def myenvs(tmp_path: Path) -> tuple[Path, Path]:
+    """A folder with ``myenvs.py`` (registers MyDrift-v0, writes ``imported`` on import) and a spec of it."""
+    pytest.importorskip("gymnasium")
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    marker = tmp_path / "imported"
+    (lib / "myenvs.py").write_text(MYENVS.format(marker=str(marker)))
+    (tmp_path / "g.mitl").write_text(DRIFT_SPEC)
+    return lib, marker
+
+
+def test_gym_module_end_to_end(tmp_path: Path, myenvs: tuple[Path, Path]) -> None:
+    lib, marker = myenvs
+    run = lambda *args: _python(list(args), tmp_path, lib)  # noqa: E731
+    r = run("compile", "g.mitl")  # not registered: nothing imports myenvs for the spec
+    assert r.returncode == 2 and not marker.exists()
+    assert _error_lines(r.stderr)[0].startswith("g.mitl:1:7: error: Gymnasium has no environment 'MyDrift-v0'")
+    assert "hint: an environment of your own module is registered by importing it: --gym-module MODULE" in r.stderr
+
+    r = run("compile", "--gym-module", "myenvs", "g.mitl")
+    assert r.returncode == 0, r.stderr
+    assert marker.exists() and "spec:        g.mitl" in r.stdout
+
+    r = run("train", "--gym-module", "myenvs", "--spec", "g.mitl", "--runs", "2", "--trials", "2", "--out", "o")
+    assert r.returncode == 0, r.stderr
+    meta = json.loads(str(np.load(tmp_path / "o" / "params.npz")["meta"]))
+    assert meta["plant"] == {"name": "gym:MyDrift-v0", "kind": "gym", "gym_modules": "myenvs"}
+    manifest = json.loads((tmp_path / "o" / "manifest.json").read_text())
+    assert manifest["plant"]["gym_modules"] == "myenvs"
+
+    marker.unlink()
+    for args in (("simulate", "--policy", "o"), ("train", "--resume", "o", "--trials", "1", "-q")):
+        r = run(*args)  # the run folder names the module; it does not import it
+        assert r.returncode == 2 and not marker.exists(), r.stderr
+        assert r.stderr.splitlines() == [
+            "o/params.npz: error: the run's environment 'MyDrift-v0' was registered by --gym-module myenvs in its "
+            "training: pass --gym-module myenvs again (a run folder never imports code)"
+        ]
+    r = run("simulate", "--policy", "o", "--gym-module", "myenvs", "--rollouts", "3")
+    assert r.returncode == 0, r.stderr
+    assert "rollouts satisfy F near (fresh resets of the environment, seed 0)" in r.stdout
+    r = run("train", "--resume", "o", "--trials", "3", "-q", "--gym-module", "myenvs")  # 3 trials in all
+    assert r.returncode == 0, r.stderr
+    assert json.loads(str(np.load(tmp_path / "o" / "params.npz")["meta"]))["trial"] == 3
+
+
+def test_gym_module_reaches_sweep_workers(tmp_path: Path, myenvs: tuple[Path, Path]) -> None:
+    lib, marker = myenvs
+    args = ["sweep", "g.mitl", "--gym-module", "myenvs", "--grid", "sigma=1", "--seeds", "1", "--runs", "1"]
+    r = _python([*args, "--trials", "2", "--workers", "1", "--out", "sw", "--no-plot", "-q"], tmp_path, lib)
+    assert r.returncode == 0, r.stderr
+    results = json.loads((tmp_path / "sw" / "results.json").read_text())["results"]
+    assert len(results) == 1 and results[0]["error"] is None and results[0]["final_return"] is not None
+
+
+def test_sweep_payload_carries_the_modules() -> None:
+    from mitlc.spec.parse import load_spec
+    from mitlc.sweep.grid import plan_sweep
+
+    spec = load_spec("pendulum/p2_avoid")
+    G.GYM_MODULES[:] = ["myenvs", "other.envs"]  # as --gym-module leaves them (the fixture restores them)
+    plan = plan_sweep(spec, ["sigma=1,2"], range(1), runs=1, trials=1)
+    assert [t.payload["gym_modules"] for t in plan.tasks] == [["myenvs", "other.envs"]] * 2
