@@ -334,3 +334,34 @@ def test_sweep_payload_carries_the_modules() -> None:
     G.GYM_MODULES[:] = ["myenvs", "other.envs"]  # as --gym-module leaves them (the fixture restores them)
     plan = plan_sweep(spec, ["sigma=1,2"], range(1), runs=1, trials=1)
     assert [t.payload["gym_modules"] for t in plan.tasks] == [["myenvs", "other.envs"]] * 2
+
+
+# ---------------------------------------------------------------- CR-only line ends
+
+
+def test_cr_only_line_ends_read_as_lines(tmp_path: Path) -> None:
+    good = tmp_path / "cr.mitl"
+    good.write_bytes(b"plant pendulum\r# a comment\rprop a = abs(q) < 0.3\rformula F a\r")
+    r = CliRunner().invoke(main, ["compile", str(good)])
+    assert r.exit_code == 0, r.output
+    assert "formula:     F a" in r.output
+    bad = tmp_path / "bad.mitl"
+    bad.write_bytes(b"plant pendulum\rprop a = abs(q) < 0.3\r# c\rformula F a & G bb\r")
+    r = CliRunner().invoke(main, ["compile", str(bad)])
+    assert r.exit_code == 2
+    assert r.output.splitlines()[:3] == [
+        f"{bad}:4:17: error: undefined proposition 'bb'",
+        "  formula F a & G bb",
+        "                  ^",
+    ]
+
+
+def test_crlf_specs_keep_their_text() -> None:
+    """``\\r\\n`` parses as before and the text (whose hash a training records) is unchanged."""
+    from mitlc.spec.parse import parse_spec
+
+    text = "plant pendulum\r\nprop a = abs(q) < 0.3\r\nformula F a\r\n"
+    assert parse_spec(text).source == text
+    assert parse_spec("plant pendulum\rprop a = q < 1\rformula F a").source == (
+        "plant pendulum\nprop a = q < 1\nformula F a"
+    )

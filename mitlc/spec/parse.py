@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 import sys
 from functools import cache
 from importlib import resources
@@ -588,8 +589,20 @@ def _check_weights(f: A.Formula, text: str) -> None:
             )
 
 
+def _line_ends(text: str) -> str:
+    """``text`` with each lone carriage return (old Mac line ends) made a line feed: the lexer ends a line
+    (and a comment) at ``\n`` only, so a spec of CR-only lines would read as one line. ``\r\n`` is left as
+    it is: it parses the same (``\r`` is white space), and the text's hash, which a training or a sweep
+    records, stays the same."""
+    return _LONE_CR.sub("\n", text) if "\r" in text else text
+
+
+_LONE_CR = re.compile(r"\r(?!\n)")
+
+
 def parse_formula(text: str) -> A.Formula:
     """Parse one formula (no spec statements)."""
+    text = _line_ends(text)
     f = _run("formula", text, None)
     try:
         _check_depth(f)
@@ -601,7 +614,7 @@ def parse_formula(text: str) -> A.Formula:
 
 def parse_predicate(text: str) -> P.Pred:
     """Parse one predicate over state variables."""
-    return _arith(_run("pred", text, None))
+    return _arith(_run("pred", _line_ends(text), None))
 
 
 def _const(p: P.Pred, what: str, pos: Token) -> float:
@@ -623,7 +636,10 @@ def _const(p: P.Pred, what: str, pos: Token) -> float:
 
 
 def parse_spec(text: str, path: str | None = None) -> Spec:
-    """Parse and check a whole spec; raise a located :class:`MitlError` if it is wrong."""
+    """Parse and check a whole spec; raise a located :class:`MitlError` if it is wrong.
+
+    A lone carriage return ends a line as ``\n`` does (:func:`_line_ends`; ``source`` is the text so read)."""
+    text = _line_ends(text)
     try:
         return _parse_spec(text, path)
     except MitlError as exc:
