@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -365,3 +366,155 @@ def test_crlf_specs_keep_their_text() -> None:
     assert parse_spec("plant pendulum\rprop a = q < 1\rformula F a").source == (
         "plant pendulum\nprop a = q < 1\nformula F a"
     )
+
+
+# ---------------------------------------------------------------- the cache is not code
+
+
+class _Evil:
+    def __init__(self, marker: Path) -> None:
+        self.marker = str(marker)
+
+    def __reduce__(self):  # what unpickling would run
+        return (exec, (f"open({self.marker!r}, 'w').write('pwned')",))
+
+
+def test_a_pickle_in_the_parser_cache_does_not_run(tmp_path: Path) -> None:
+    from mitlc.spec import parse as P
+
+    cache = tmp_path / "cache"
+    (cache / "parser").mkdir(parents=True, mode=0o700)
+    cache.chmod(0o700)
+    marker = tmp_path / "pwned"
+    grammar = P._grammar_text()
+    evil = pickle.dumps(_Evil(marker))
+    for start in ("start", "formula", "pred"):
+        key = P._tables_key(grammar, start)
+        old = cache / "parser" / f"mitl-{start}-{key[:16]}.lark"  # where lark's pickle was
+        old.write_bytes(key.encode() + b"\n" + evil + evil)
+        new = cache / "parser" / f"mitl-{start}-{key[:16]}.json"
+        new.write_bytes(evil)
+        new.chmod(0o600)
+    for _ in range(2):
+        r = _python(["compile", "pendulum/p2_avoid"], tmp_path, MITLC_CACHE_DIR=str(cache))
+        assert r.returncode == 0, r.stderr
+        assert not marker.exists()
+        assert "formula:     F G kappa & 10 * G !psi" in r.stdout
+    kept = (cache / "parser" / f"mitl-start-{P._tables_key(grammar, 'start')[:16]}.json").read_bytes()
+    assert kept.startswith(b"mitlc-parser-tables 1 " + P._tables_key(grammar, "start").encode() + b" ")
+    json.loads(kept.partition(b"\n")[2])  # plain data
+
+
+def _parsed(parser, text: str) -> str:
+    import lark
+
+    try:
+        return repr(parser.parse(text))
+    except lark.exceptions.UnexpectedInput as exc:
+        return f"{type(exc).__name__} {exc.line}:{exc.column} {sorted(getattr(exc, 'expected', ()) or ())}"
+    except Exception as exc:  # a SpecError raised by the transformer
+        return f"{type(exc).__name__} {exc}"
+
+
+def test_tables_from_the_cache_parse_as_built_ones(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from lark import Lark
+
+    from mitlc.spec import parse as P
+
+    monkeypatch.setenv("MITLC_CACHE_DIR", str(tmp_path / "c"))
+    grammar = P._grammar_text()
+    texts = [p.read_text() for p in sorted(SPECS.rglob("*.mitl"))]
+    texts += [t[: len(t) // 2] for t in texts[:6]] + ["prop = 1", "formula F[2,1] a", "formula G (a -> ", "x" * 5]
+    assert len(texts) > 20
+    for start in ("start",):
+        built = Lark(grammar, parser="lalr", start=start, transformer=P._Build(), maybe_placeholders=True)
+        path = Path(str(P._table_file(grammar, start)))
+        P._save_tables(built, path, P._tables_key(grammar, start))
+        loaded = P._load_tables(path, P._tables_key(grammar, start))
+        assert loaded is not None
+        assert [_parsed(loaded, t) for t in texts] == [_parsed(built, t) for t in texts]
+        assert P._load_tables(path, "another grammar") is None
+
+
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="no user ids on this platform")
+def test_cache_files_not_the_users_own_are_not_read(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from lark import Lark
+
+    from mitlc import cachefiles as C
+    from mitlc.spec import parse as P
+
+    root = tmp_path / "c"
+    monkeypatch.setenv("MITLC_CACHE_DIR", str(root))
+    grammar = P._grammar_text()
+    key = P._tables_key(grammar, "pred")
+    path = Path(str(P._table_file(grammar, "pred")))
+    assert oct(root.stat().st_mode & 0o777) == oct(0o700) and oct(path.parent.stat().st_mode & 0o777) == oct(0o700)
+    P._save_tables(Lark(grammar, parser="lalr", start="pred", transformer=P._Build()), path, key)
+    assert P._load_tables(path, key) is not None and C.untrusted(path) is None
+
+    path.chmod(0o666)  # writable by anyone, but in a folder only its owner may enter: still private
+    assert C.untrusted(path) is None
+    path.parent.chmod(0o755)
+    assert C.untrusted(path) == f"writable by others (mode 0666; chmod go-w {path})"
+    assert P._load_tables(path, key) is None
+    path.chmod(0o600)
+    assert P._load_tables(path, key) is not None
+
+    path.parent.chmod(0o775)  # a folder others may write: nothing in it is read, nothing written
+    assert P._table_file(grammar, "pred") is False
+    folder, why = C.cache_folder("parser")
+    assert folder is None and why == f"{path.parent} is writable by others (mode 0775; chmod go-w {path.parent})"
+    path.parent.chmod(0o700)
+    assert P._table_file(grammar, "pred") == str(path)
+
+    if os.getuid() == 0:  # root can make a file another user's
+        os.chown(path, 4321, 4321)
+        assert C.untrusted(path) == "owned by user 4321, not by you (0)"
+        assert P._load_tables(path, key) is None
+        os.chown(path.parent, 4321, 4321)
+        assert P._table_file(grammar, "pred") is False
+
+
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="no user ids on this platform")
+def test_the_kernel_cache_is_used_only_when_it_is_the_users_own(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pytest.importorskip("numba")
+    from mitlc.learn import jitcache as J
+
+    root = tmp_path / "c"
+    monkeypatch.setenv("MITLC_CACHE_DIR", str(root))
+    monkeypatch.setattr(J, "_LOADED", {})
+
+    def plus_one(x):
+        return x + 1.5
+
+    kernel = J.load(plus_one)
+    assert kernel is not None and kernel(1.0) == 2.5
+    pycache = root / "kernels" / "__pycache__"
+    assert oct(pycache.stat().st_mode & 0o777) == oct(0o700)
+    files = sorted(p.name for p in pycache.iterdir())
+    assert any(f.endswith(".nbi") for f in files) and any(f.endswith(".nbc") for f in files)
+
+    J._LOADED.clear()
+    numba_index = next(p for p in pycache.iterdir() if p.name.endswith(".nbi"))
+    numba_index.chmod(0o666)
+    pycache.chmod(0o755)  # numba's pickle is now anyone's to write: not loaded
+    assert J.load(plus_one) is None
+    assert f"{numba_index} is writable by others (mode 0666; chmod go-w {numba_index})" == J._REFUSED
+    pycache.chmod(0o700)
+    assert J.load(plus_one) is not None and J._REFUSED is None
+
+    J._LOADED.clear()
+    (root / "kernels").chmod(0o777)
+    assert J.load(plus_one) is None
+    assert J._REFUSED is not None and "kernels is writable by others (mode 0777" in J._REFUSED
+    notes: list[str] = []
+    before = J.set_notice(notes.append)
+    try:
+        from numba import njit
+
+        J.announce(njit(plus_one))
+    finally:
+        J.set_notice(before)
+    assert notes and "the disk cache is not used" in notes[0] and "writable by others" in notes[0]
