@@ -53,12 +53,38 @@ def _load_plant_files(ctx: click.Context, param: click.Parameter, values: tuple[
         try:
             load_plants(v)
         except MitlError as exc:
+            click.echo(exc.located(f"--plant-file {v}").render(), err=True)
+            ctx.exit(2)
+
+
+def _import_gym_modules(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]) -> None:
+    if not values:  # without the option: nothing imported (not even Gymnasium)
+        return
+    from mitlc.plants.gym_env import import_gym_module
+
+    for v in values:
+        try:
+            import_gym_module(v)
+        except MitlError as exc:
             click.echo(exc.render(), err=True)
             ctx.exit(2)
 
 
 def plant_file_option(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """``--plant-file FILE.py|MODULE:ATTR`` (repeatable): register the user's plants before the spec is read."""
+    """``--plant-file FILE.py|MODULE:ATTR`` and ``--gym-module MODULE`` (each repeatable): register the user's
+    plants, and the Gymnasium environments of the user's modules, before the spec is read. The only ways
+    code of the user's is imported: a spec (or a run folder) never imports anything."""
+    fn = click.option(
+        "--gym-module",
+        multiple=True,
+        metavar="MODULE",
+        expose_value=False,
+        is_eager=True,
+        callback=_import_gym_modules,
+        help="Import this Python module first, so that it registers its Gymnasium environments for a spec's "
+        "'plant gym:ID' (a spec names registered ids only: 'gym:module:ID' is refused); repeat for more. "
+        "A training records it; a run folder asks for it again rather than importing it.",
+    )(fn)
     return click.option(
         "--plant-file",
         multiple=True,
@@ -68,7 +94,8 @@ def plant_file_option(fn: Callable[..., Any]) -> Callable[..., Any]:
         callback=_load_plant_files,
         help="Your own plant: a Python file (every Plant in it) or module:attribute (a Plant, a list of "
         "them, or a function returning one); repeat for more. Installed packages add plants through "
-        "the 'mitlc.plants' entry point; a spec's 'plant gym:ID' names any Gymnasium environment. "
+        "the 'mitlc.plants' entry point; a spec's 'plant gym:ID' names a registered Gymnasium environment "
+        "(--gym-module registers those of a module of yours). "
         "mitlc plants lists them (mitlc docs plants).",
     )(fn)
 

@@ -18,8 +18,8 @@ def plants() -> None:
     mitlc's own, those of installed packages (entry point group 'mitlc.plants') and those of
     --plant-file; for each its state variables with
     their bounds (angles wrap), its parameters with their defaults and its default spec. Any
-    Gymnasium environment is a plant too: 'plant gym:ID' with 'state' lines mapping its observation
-    (mitlc docs plants)."""
+    registered Gymnasium environment is a plant too: 'plant gym:ID' with 'state' lines mapping its
+    observation; --gym-module MODULE registers those of a module of yours (mitlc docs plants)."""
     from mitlc.plants.base import PLANTS
     from mitlc.plants.user import discover
 
@@ -35,7 +35,8 @@ def plants() -> None:
         if p.default_spec:
             click.echo(f"  default spec: {p.default_spec.removesuffix('.mitl')}")
     click.echo(
-        "gym:ID: any Gymnasium environment with one continuous action (Box), e.g. gym:Pendulum-v1; "
+        "gym:ID: any registered Gymnasium environment with one continuous action (Box), e.g. gym:Pendulum-v1 "
+        "(--gym-module MODULE registers a module's own); "
         "a spec maps its state variables to the observation, 'state q = atan2(obs[1], obs[0]), w = obs[2]' "
         "(shipped: gym/mountain_car_reach, gym/pendulum_v1_swing_up)"
     )

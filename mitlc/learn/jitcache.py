@@ -16,6 +16,13 @@ mitlc's own and safe to delete. Where the folder cannot be written, or a functio
 graph holds something that cannot be written as source, :func:`load` returns None and
 the caller compiles in memory as before: the same code, the same numbers.
 
+Loading from there runs code: the generated module (and Python's ``.pyc`` of it), and
+numba's index and data files, which are pickles. So the cache is used only as far as it is
+the user's own (:mod:`mitlc.cachefiles`, as ssh does): the cache root, ``kernels/`` and its
+``__pycache__/`` (made ``0700``) owned by the current user and writable by nobody else, and
+the kernel's files in them too; otherwise :func:`load` returns None (compiled in memory),
+and :func:`announce`'s line says why.
+
 numba compiles a kernel on its first call; :func:`announce`, called just before it, tells
 the function set by :func:`set_notice` (the command line's: one line on stderr) when that
 call is going to compile rather than load from the cache, so that a first training does
@@ -39,6 +46,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from mitlc.cachefiles import cache_folder, untrusted
 from mitlc.fileio import cache_root
 
 __all__ = ["cache_dir", "module_source", "load", "set_notice", "will_compile", "announce"]
@@ -46,6 +54,8 @@ __all__ = ["cache_dir", "module_source", "load", "set_notice", "will_compile", "
 JIT_OPTIONS = "fastmath=False, error_model='numpy', nogil=True, cache=True"
 _LOADED: dict[str, types.ModuleType] = {}
 _NOTICE: Callable[[str], None] | None = None
+_REFUSED: str | None = None
+"""Why the last :func:`load` did not use the disk cache it has (a folder or file not the user's own)."""
 
 
 class Unwritable(Exception):
@@ -216,8 +226,8 @@ def _versions() -> str:
 def load(fn: Callable) -> Callable | None:
     """``fn`` (a plain-Python kernel, closures and all) compiled by numba through a module
     in the disk cache; None where there is no cache or ``fn`` cannot be written as source."""
-    folder = cache_dir()
-    if folder is None:
+    global _REFUSED
+    if cache_dir() is None:
         return None
     try:
         source, name = module_source(fn, _versions())
@@ -226,10 +236,14 @@ def load(fn: Callable) -> Callable | None:
     digest = hashlib.sha256(source.encode()).hexdigest()[:24]
     module = _LOADED.get(digest)
     if module is None:
+        pycache, why = cache_folder("kernels", "__pycache__")  # numba's files and the .pyc go there
+        if pycache is None:
+            _REFUSED = why
+            return None
+        folder = pycache.parent
         path = folder / f"kernel_{digest}.py"
         try:
             if not path.exists():
-                folder.mkdir(parents=True, exist_ok=True)
                 fd, tmp = tempfile.mkstemp(dir=folder, prefix=".kernel-", suffix=".tmp")
                 try:
                     with os.fdopen(fd, "w") as fh:
@@ -240,10 +254,15 @@ def load(fn: Callable) -> Callable | None:
                         pass
                 finally:
                     os.unlink(tmp)
+            why = _untrusted_files(path, pycache, digest)
+            if why is not None:
+                _REFUSED = why
+                return None
             if path.read_text() != source:  # a damaged file: not ours to trust
                 return None
         except OSError:
             return None
+        _REFUSED = None
         spec = importlib.util.spec_from_file_location(f"mitlc_kernel_{digest}", path)
         assert spec is not None and spec.loader is not None
         module = importlib.util.module_from_spec(spec)
@@ -251,6 +270,17 @@ def load(fn: Callable) -> Callable | None:
         spec.loader.exec_module(module)
         _LOADED[digest] = module
     return getattr(module, name)
+
+
+def _untrusted_files(path: Path, pycache: Path, digest: str) -> str | None:
+    """Why the kernel module ``path`` or a file of it in ``pycache`` (its ``.pyc``, numba's index and
+    data) is not to be loaded, or None."""
+    files = [path, *sorted(pycache.glob(f"kernel_{digest}.*"))]
+    for f in files:
+        problem = untrusted(f)
+        if problem is not None:
+            return f"{f} is {problem}"
+    return None
 
 
 # ---------------------------------------------------------------- telling a compile apart from a load
@@ -292,6 +322,8 @@ def announce(fn: Any) -> None:
         where = f"once per plant and propositions: cached in {_home(folder)}"
     elif folder is None:
         where = "in every process: MITLC_CACHE_DIR is empty, the disk cache is off"
+    elif _REFUSED is not None:
+        where = f"in every process: the disk cache is not used, {_REFUSED}"
     else:
         where = "in every process: this kernel cannot be cached on disk"
     _NOTICE(f"compiling the training kernel (up to ~10 s, {where})")

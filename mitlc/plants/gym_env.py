@@ -27,11 +27,20 @@ terminates keeps its last state to the end of the trial (MountainCar's goal is
 absorbing).
 
 Gymnasium is imported only when such a plant is used (``pip install 'mitlc[gym]'``).
+
+A spec never causes an import: Gymnasium reads an id ``module:Env`` as "import ``module``,
+then make ``Env``", so an id with a ``:`` is refused (:func:`check_env_id`, before Gymnasium
+sees it) and a spec names registered ids only. The environments of a module of the user's are
+registered by naming it on the command line, ``--gym-module MODULE``
+(:func:`import_gym_module`), which imports it before the spec is read; a training records it,
+and a run folder says which option to pass again rather than importing it.
 """
 
 from __future__ import annotations
 
+import importlib
 import math
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -43,6 +52,10 @@ from mitlc.plants.base import Plant, StateVar, wrap_angle
 
 __all__ = [
     "GYM_PREFIX",
+    "GYM_MODULES",
+    "MAX_ID",
+    "check_env_id",
+    "import_gym_module",
     "ObsVar",
     "EnvInfo",
     "open_env",
@@ -57,6 +70,15 @@ __all__ = [
 
 GYM_PREFIX = "gym:"
 """A plant name starting with this names a Gymnasium environment id."""
+
+GYM_MODULES: list[str] = []
+"""The modules ``--gym-module`` imported in this process, in order: a training records them and a
+sweep's workers import them again (:mod:`mitlc.sweep.task`)."""
+
+MAX_ID = 200
+"""The longest Gymnasium id accepted, in characters (Gymnasium's own are under 50)."""
+
+_MODULE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 
 MAX_RESETS = 1000
 """Resets a copy may take to start inside the spec's ``init`` before training stops."""
@@ -101,14 +123,78 @@ def _gymnasium() -> Any:
     return gymnasium
 
 
+def _short(text: str, n: int = 60) -> str:
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
+def check_env_id(env_id: object) -> str:
+    """``env_id`` if it names an environment without importing anything, else an :class:`InputError`.
+
+    Gymnasium's ``make``, ``make_vec`` and ``spec`` read ``module:Env`` as an order to import
+    ``module`` first: an id from a spec (or a run folder) must never do that, so any ``:`` is
+    refused here, before Gymnasium sees the id. What is left (``[namespace/]name[-vN]``) is only
+    looked up in Gymnasium's registry.
+    """
+    if not isinstance(env_id, str) or not env_id:
+        raise InputError(f"a Gymnasium id is a non-empty string, got {_short(repr(env_id))}")
+    if len(env_id) > MAX_ID:
+        raise InputError(f"'{_short(env_id)}' is not a Gymnasium id: longer than {MAX_ID} characters")
+    if ":" in env_id:
+        module, _, name = env_id.rpartition(":")
+        if _MODULE_NAME.fullmatch(module) and name and ":" not in module:
+            raise InputError(
+                f"'{GYM_PREFIX}{_short(env_id)}' would import the module '{_short(module)}': a spec names registered "
+                f"Gymnasium ids only, and never causes an import; write 'plant {GYM_PREFIX}{_short(name)}' and pass "
+                f"--gym-module {_short(module)} to register the module's environments"
+            )
+        raise InputError(
+            f"'{GYM_PREFIX}{_short(env_id)}' is not a registered Gymnasium id: ':' would name a module to import, "
+            "and a spec never causes an import (pass --gym-module MODULE to register a module's environments)"
+        )
+    return env_id
+
+
+def import_gym_module(name: str, option: str = "--gym-module") -> None:
+    """Import the module ``name`` (``--gym-module``), so that it registers its Gymnasium environments.
+
+    The user's explicit choice on the command line; recorded in :data:`GYM_MODULES`. Any failure is
+    one :class:`InputError` naming the option."""
+    where = f"{option} {_short(name)}"
+    if not _MODULE_NAME.fullmatch(name):
+        hint = "a file of plants is --plant-file FILE.py" if name.endswith(".py") or "/" in name else None
+        raise InputError("not a module name (a dotted Python name such as mypkg.envs)", file=where, hint=hint)
+    try:
+        importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        missing = exc.name or name
+        hint = (
+            "put its folder on the Python path (PYTHONPATH=DIR) or install its package"
+            if name == missing or name.startswith(missing + ".")
+            else None
+        )
+        raise InputError(
+            f"cannot import module '{_short(name)}': no module named '{_short(missing)}'", file=where, hint=hint
+        ) from None
+    except (Exception, SystemExit) as exc:  # the user's code: any failure becomes one line
+        raise InputError(
+            f"importing module '{_short(name)}' failed: {type(exc).__name__}: {_first_line(exc)}", file=where
+        ) from None
+    if name not in GYM_MODULES:
+        GYM_MODULES.append(name)
+
+
 def open_env(env_id: str, kwargs: Mapping[str, float] | None = None, **make: Any) -> Any:
     """``gymnasium.make(env_id, **kwargs)``, with one clear error for an unknown id or argument."""
+    env_id = check_env_id(env_id)
     gym = _gymnasium()
     args = {k: _make_arg(v) for k, v in (kwargs or {}).items()}
     try:
         return gym.make(env_id, disable_env_checker=True, **make, **args)
     except gym.error.Error as exc:
-        raise InputError(f"Gymnasium has no environment '{env_id}' ({_first_line(exc)})") from None
+        raise InputError(
+            f"Gymnasium has no environment '{env_id}' ({_first_line(exc)})",
+            hint="an environment of your own module is registered by importing it: --gym-module MODULE",
+        ) from None
     except (TypeError, ValueError) as exc:
         given = ", ".join(args) or "none"
         raise InputError(
@@ -251,7 +337,7 @@ class GymSimulator:
         init: Mapping[str, tuple[float, float]],
         u_max: float,
     ) -> None:
-        self.env_id, self.kwargs, self.observe = env_id, dict(kwargs), tuple(observe)
+        self.env_id, self.kwargs, self.observe = check_env_id(env_id), dict(kwargs), tuple(observe)
         self.u_max = float(u_max)
         names = [o.var.name for o in self.observe]
         cols = [(names.index(v), lo, hi) for v, (lo, hi) in init.items() if v in names]
@@ -268,7 +354,7 @@ class GymSimulator:
             gym = _gymnasium()
             args = {k: _make_arg(v) for k, v in self.kwargs.items()}
             env = gym.make_vec(
-                self.env_id,
+                check_env_id(self.env_id),
                 num_envs=B,
                 vectorization_mode="sync",
                 vector_kwargs={"copy": False},

@@ -64,9 +64,10 @@ _ORIGINS: dict[str, _Origin] = {}
 PLANT_COPIES = "plants"
 """The folder of a training (``--out``) that keeps a copy of its plant file."""
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\.py")
+_MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 
 
-def _plants_in(value: Any, where: str) -> list[Plant]:
+def _plants_in(value: Any, where: str, option: str | None = None) -> list[Plant]:
     if callable(value) and not isinstance(value, Plant):
         value = value()
     if isinstance(value, Plant):
@@ -75,7 +76,7 @@ def _plants_in(value: Any, where: str) -> list[Plant]:
         items = list(value)
         if items and all(isinstance(v, Plant) for v in items):
             return items
-    raise InputError(f"{where} is not a mitlc Plant (nor a list of them, nor a function returning one)")
+    raise InputError(f"{where} is not a mitlc Plant (nor a list of them, nor a function returning one)", file=option)
 
 
 def _import_file(path: Path, option: str) -> Any:
@@ -134,7 +135,7 @@ def load_plants(source: str, option: str = "--plant-file", _recorded_as: str | N
     if attr:
         if not hasattr(module, attr):
             raise InputError(f"{where} has no attribute '{attr}'", file=option)
-        plants = _plants_in(getattr(module, attr), f"{where}:{attr}")
+        plants = _plants_in(getattr(module, attr), f"{where}:{attr}", option)
     else:
         plants = [v for v in vars(module).values() if isinstance(v, Plant)]
         plants += [p for n, p in PLANTS.items() if before.get(n) is not p]  # the module's register() calls
@@ -191,10 +192,16 @@ def plant_record(name: str) -> dict[str, str]:
 
     ``kind`` is ``file`` (with the file's original ``path``, its ``sha256``, ``attr`` and the
     training folder's copy ``file``; :func:`plant_files` gives the copy), ``module``, ``entry_point``
-    (``source`` says which), ``gym`` (the id is the spec's), ``builtin`` or ``registered`` (in code).
+    (``source`` says which), ``gym`` (the id is the spec's; ``gym_modules``: the ``--gym-module`` modules
+    imported, space-separated, when any), ``builtin`` or ``registered`` (in code).
     """
     if name.startswith("gym:"):
-        return {"name": name, "kind": "gym"}
+        from mitlc.plants.gym_env import GYM_MODULES
+
+        record = {"name": name, "kind": "gym"}
+        if GYM_MODULES:  # what registered the environment; named again by the user, never imported from a record
+            record["gym_modules"] = " ".join(GYM_MODULES)
+        return record
     o = _origin(name)
     if o is None:
         plant = PLANTS.get(name)
@@ -227,9 +234,36 @@ def _checked_record(record: Any, where: str) -> dict[str, str] | None:
         ok = all(k in record for k in ("name", "path", "attr", "sha256", "file"))
         folder, _, base = record["file"].partition("/")
         ok = ok and folder == PLANT_COPIES and _SAFE_NAME.fullmatch(base) is not None
+    if ok and record.get("kind") == "gym":
+        ok = all(_MODULE.fullmatch(m) for m in record.get("gym_modules", "").split())
     if not ok or "name" not in record:
         raise InputError("damaged checkpoint: its meta 'plant' record is not a plant record", file=where)
     return record
+
+
+def _registered_env(env_id: str) -> bool:
+    """Whether Gymnasium's registry holds ``env_id`` (or a version of it) now: a look-up, no import but Gymnasium."""
+    try:
+        import gymnasium
+    except ImportError:
+        return False
+    return any(k == env_id or k.startswith(env_id + "-v") for k in gymnasium.registry)
+
+
+def _restore_gym(rec: dict[str, str], where: str) -> None:
+    """A Gymnasium plant's run: the modules its training registered environments from (``--gym-module``)
+    are named, never imported; an environment not registered here asks for the option again."""
+    from mitlc.plants.gym_env import GYM_MODULES
+
+    missing = [m for m in rec.get("gym_modules", "").split() if m not in GYM_MODULES]
+    env_id = rec["name"][len("gym:") :]
+    if missing and ":" not in env_id and not _registered_env(env_id):
+        again = " ".join(f"--gym-module {m}" for m in missing)
+        raise InputError(
+            f"the run's environment '{env_id[:60]}' was registered by {again} in its training: pass {again} "
+            "again (a run folder never imports code)",
+            file=where,
+        )
 
 
 def restore_plant(record: Any, folder: str | Path, where: str | None = None) -> list[str]:
@@ -238,8 +272,10 @@ def restore_plant(record: Any, folder: str | Path, where: str | None = None) -> 
     A plant from a plant file is loaded from the folder's own copy (the code the training ran) when its
     name is not registered from a file of the same content already (a ``--plant-file`` given again wins,
     with a note when it differs). Other kinds need nothing (shipped, gym ids in the spec, entry points
-    found by :func:`discover`) or cannot be loaded from the folder (``module:attribute``: an
-    :class:`InputError` says to pass it again). Returns notes for the user, one line each.
+    found by :func:`discover`) or cannot be loaded from the folder (``module:attribute``, and the
+    ``--gym-module`` modules of a Gymnasium plant whose environment is not registered: an
+    :class:`InputError` says which option to pass again; a run folder never imports code). Returns
+    notes for the user, one line each.
     """
     where = where or str(folder)
     rec = _checked_record(record, where)
@@ -255,6 +291,9 @@ def restore_plant(record: Any, folder: str | Path, where: str | None = None) -> 
                 "registered": "register it (mitlc.plants.register) before loading the run",
             }[kind]
             raise InputError(f"the run's plant '{name}' is not known here: {how}", file=where)
+        return []
+    if kind == "gym":
+        _restore_gym(rec, where)
         return []
     if kind != "file":
         return []

@@ -16,9 +16,14 @@ mitlc.errors.SpecError: <spec>:1:3: error: inverted interval [2,1]: the lower en
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import json
 import math
+import os
+import re
 import sys
+import tempfile
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -28,10 +33,9 @@ import lark
 from lark import Lark, Token, Transformer
 
 from mitlc.errors import MitlError, SpecError, SpecSyntaxError
-from mitlc.fileio import cache_root
 from mitlc.limits import MAX_SPEC_BYTES, MAX_TIME
 from mitlc.plants.base import PLANTS, Plant, StateVar
-from mitlc.plants.gym_env import GYM_PREFIX, ObsVar, env_info, gym_plant
+from mitlc.plants.gym_env import GYM_PREFIX, ObsVar, check_env_id, env_info, gym_plant
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
@@ -95,34 +99,127 @@ def _grammar_text() -> str:
     return resources.files("mitlc.grammar").joinpath("mitl.lark").read_text(encoding="utf-8")
 
 
+_TABLES_FORMAT = "mitlc-parser-tables 1"
+"""The first word pair of a tables file: the format, then its version."""
+
+_MAX_TABLES_BYTES = 16 << 20
+"""A tables file larger than this is not read (the grammar's are about 140 KB)."""
+
+_LOAD_OPTIONS = frozenset(
+    getattr(
+        lark.lark,
+        "_LOAD_ALLOWED_OPTIONS",
+        {"postlex", "transformer", "lexer_callbacks", "use_bytes", "debug", "g_regex_flags", "regex"}
+        | {"propagate_positions", "tree_class", "_plugins"},
+    )
+)
+"""Options given again when tables are loaded (the transformer is code: never in the file)."""
+
+
+def _tables_key(grammar: str, start: str) -> str:
+    return hashlib.sha256(f"{grammar}\0{start}\0{lark.__version__}\0{sys.version_info[:2]}".encode()).hexdigest()
+
+
 def _table_file(grammar: str, start: str) -> str | bool:
-    """Where lark keeps the parser's tables between processes (building them is most of a short
-    ``mitlc check``'s start-up: 54 ms of it, 6 ms to load them); False when the cache is off or
-    cannot be written. The name holds the grammar's, lark's and Python's hash, so a stale file
-    is never read; lark itself checks the same hash inside and rebuilds on any doubt."""
-    root = cache_root()
-    if root is None:
+    """Where the parser's tables are kept between processes (building them is most of a short
+    ``mitlc check``'s start-up), or False when the disk cache is off, cannot be written, or is not
+    to be trusted (:func:`mitlc.cachefiles.cache_folder`). The name holds the grammar's, lark's and
+    Python's hash, so a stale file is never read; the file's first line holds the whole hash again."""
+    from mitlc.cachefiles import cache_folder
+
+    folder, _ = cache_folder("parser")
+    if folder is None:
         return False
-    key = hashlib.sha256(f"{grammar}\0{start}\0{lark.__version__}\0{sys.version_info[:2]}".encode()).hexdigest()
-    folder = root / "parser"
+    return str(folder / f"mitl-{start}-{_tables_key(grammar, start)[:16]}.json")
+
+
+def _tagged(x: Any) -> Any:
+    """lark's serialised tables as JSON: tuples and dicts with keys other than strings are tagged."""
+    if isinstance(x, tuple):
+        return {"__tuple__": [_tagged(v) for v in x]}
+    if isinstance(x, list):
+        return [_tagged(v) for v in x]
+    if isinstance(x, dict):
+        if all(type(k) is str for k in x) and not (len(x) == 1 and next(iter(x)) in ("__tuple__", "__items__")):
+            return {k: _tagged(v) for k, v in x.items()}
+        return {"__items__": [[_tagged(k), _tagged(v)] for k, v in x.items()]}
+    if x is None or type(x) in (str, int, float, bool):
+        return x
+    raise TypeError(f"{type(x).__name__} in lark's tables")
+
+
+def _untagged(d: dict) -> Any:
+    if len(d) == 1:
+        if "__tuple__" in d:
+            return tuple(d["__tuple__"])
+        if "__items__" in d:
+            return {k: v for k, v in d["__items__"]}
+    return d
+
+
+def _load_tables(path: Path, key: str) -> Lark | None:
+    """The parser kept in ``path``, or None (no such file, another grammar, damaged, or not to be trusted).
+
+    The file is JSON data (lark's ``memo_serialize``), never a pickle: reading it runs no code. It is
+    read only when it and its folder are the user's own and no one else's to write
+    (:func:`mitlc.cachefiles.untrusted`): tables written by someone else could change what a spec means."""
+    from mitlc.cachefiles import untrusted
+
+    if untrusted(path) is not None:
+        return None
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return False
-    return str(folder / f"mitl-{start}-{key[:16]}.lark")
+        with path.open("rb") as fh:
+            raw = fh.read(_MAX_TABLES_BYTES + 1)
+        head, _, body = raw.partition(b"\n")
+        fmt_name, fmt_version, file_key, digest = head.decode("ascii").split(" ")
+        if len(raw) > _MAX_TABLES_BYTES or f"{fmt_name} {fmt_version}" != _TABLES_FORMAT or file_key != key:
+            return None
+        if hashlib.sha256(body).hexdigest() != digest:
+            return None
+        tables = json.loads(body, object_hook=_untagged)
+        return Lark._load_from_dict(tables["data"], tables["memo"], transformer=_Build())
+    except Exception:  # a damaged file, or another lark's internals: build the tables instead
+        return None
+
+
+def _save_tables(parser: Lark, path: Path, key: str) -> None:
+    """Write ``parser``'s tables to ``path`` as JSON data, atomically; nothing when that fails."""
+    from lark.grammar import Rule
+    from lark.lexer import TerminalDef
+
+    tmp = None
+    try:
+        data, memo = parser.memo_serialize([TerminalDef, Rule])
+        data["options"] = {k: v for k, v in data["options"].items() if k not in _LOAD_OPTIONS}
+        body = json.dumps({"data": _tagged(data), "memo": _tagged(memo)}, separators=(",", ":")).encode()
+        head = f"{_TABLES_FORMAT} {key} {hashlib.sha256(body).hexdigest()}\n".encode()
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tables-", suffix=".tmp")  # mode 0600
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(head + body)
+        os.replace(tmp, path)
+        tmp = None
+    except Exception:  # a full disk, a read-only folder, another lark: the next process builds them again
+        pass
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 @cache
 def _parser(start: str) -> Lark:
     grammar = _grammar_text()
-    return Lark(
-        grammar,
-        parser="lalr",
-        start=start,
-        transformer=_Build(),
-        maybe_placeholders=True,
-        cache=_table_file(grammar, start),
-    )
+    where = _table_file(grammar, start)
+    path = Path(where) if isinstance(where, str) else None
+    key = _tables_key(grammar, start)
+    if path is not None:
+        kept = _load_tables(path, key)
+        if kept is not None:
+            return kept
+    parser = Lark(grammar, parser="lalr", start=start, transformer=_Build(), maybe_placeholders=True)
+    if path is not None:
+        _save_tables(parser, path, key)
+    return parser
 
 
 def _pos(tok: Token) -> A.Pos:
@@ -588,8 +685,20 @@ def _check_weights(f: A.Formula, text: str) -> None:
             )
 
 
+def _line_ends(text: str) -> str:
+    """``text`` with each lone carriage return (old Mac line ends) made a line feed: the lexer ends a line
+    (and a comment) at ``\n`` only, so a spec of CR-only lines would read as one line. ``\r\n`` is left as
+    it is: it parses the same (``\r`` is white space), and the text's hash, which a training or a sweep
+    records, stays the same."""
+    return _LONE_CR.sub("\n", text) if "\r" in text else text
+
+
+_LONE_CR = re.compile(r"\r(?!\n)")
+
+
 def parse_formula(text: str) -> A.Formula:
     """Parse one formula (no spec statements)."""
+    text = _line_ends(text)
     f = _run("formula", text, None)
     try:
         _check_depth(f)
@@ -601,7 +710,7 @@ def parse_formula(text: str) -> A.Formula:
 
 def parse_predicate(text: str) -> P.Pred:
     """Parse one predicate over state variables."""
-    return _arith(_run("pred", text, None))
+    return _arith(_run("pred", _line_ends(text), None))
 
 
 def _const(p: P.Pred, what: str, pos: Token) -> float:
@@ -623,7 +732,10 @@ def _const(p: P.Pred, what: str, pos: Token) -> float:
 
 
 def parse_spec(text: str, path: str | None = None) -> Spec:
-    """Parse and check a whole spec; raise a located :class:`MitlError` if it is wrong."""
+    """Parse and check a whole spec; raise a located :class:`MitlError` if it is wrong.
+
+    A lone carriage return ends a line as ``\n`` does (:func:`_line_ends`; ``source`` is the text so read)."""
+    text = _line_ends(text)
     try:
         return _parse_spec(text, path)
     except MitlError as exc:
@@ -948,6 +1060,10 @@ def _columns(index: dict[str, int]) -> Any:
 def _env_plant(tok: Token, params: list, state_lines: list) -> tuple[Plant, dict[str, float]]:
     """The plant of ``plant gym:ID(...)`` and its ``state`` lines (:mod:`mitlc.plants.gym_env`)."""
     env_id = str(tok)[len(GYM_PREFIX) :]
+    try:
+        check_env_id(env_id)  # first: 'gym:module:Env' would make Gymnasium import module
+    except MitlError as exc:
+        raise SpecError(exc.message, line=tok.line, column=tok.column, hint=exc.hint) from None
     values: dict[str, float] = {}
     for ptok, value in params:
         pname = str(ptok)
@@ -961,7 +1077,7 @@ def _env_plant(tok: Token, params: list, state_lines: list) -> tuple[Plant, dict
     try:
         info = env_info(env_id, values)
     except MitlError as exc:
-        raise SpecError(exc.message, line=tok.line, column=tok.column) from None
+        raise SpecError(exc.message, line=tok.line, column=tok.column, hint=exc.hint) from None
     if dt_given is not None:
         if not dt_given > 0:
             raise SpecError(

@@ -34,6 +34,7 @@ from typing import Any
 
 from mitlc.errors import InputError, MitlError
 from mitlc.learn.settings import close_names, parse_finite, setting_parsers
+from mitlc.plants.gym_env import GYM_MODULES
 from mitlc.plants.user import SOURCES as PLANT_SOURCES
 from mitlc.spec import ast as A
 from mitlc.spec.model import OPTIONS, Spec
@@ -384,6 +385,7 @@ def plan_sweep(spec: Spec, grid: Sequence[str], seeds: Sequence[int], runs: int,
                 "spec_text": text,
                 "spec_path": spec.path,
                 "plant_sources": list(PLANT_SOURCES),  # the user's plants, loaded again in each worker
+                "gym_modules": list(GYM_MODULES),  # and the --gym-module modules, imported again
                 "runs": int(runs),
                 "trials": int(trials),
                 "seed": int(seed),

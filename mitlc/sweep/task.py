@@ -35,10 +35,13 @@ def run_task(payload: Mapping[str, Any]) -> dict:
     from mitlc.learn.sacpn import Sacpn, SacpnSettings
     from mitlc.monitor.offline import monitor
     from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.plants.gym_env import import_gym_module
     from mitlc.plants.user import load_plants
     from mitlc.spec.parse import parse_spec
 
     start, cpu_start = time.perf_counter(), time.process_time()
+    for module in payload.get("gym_modules", ()):  # the --gym-module modules: their environments registered again
+        import_gym_module(module)
     for source in payload.get("plant_sources", ()):  # a worker process starts with mitlc's own plants only
         load_plants(source)
     spec = with_weights(parse_spec(payload["spec_text"], payload.get("spec_path")), payload["weights"])
