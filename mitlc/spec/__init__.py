@@ -6,7 +6,8 @@ predicates over a plant's state, a weighted MITL formula, init set, horizon, opt
 (:mod:`mitlc.spec.predicates`) and the pure passes over formulas
 (:mod:`mitlc.spec.passes`).
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`.
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
+:mod:`mitlc.cachefiles` (the parser's tables).
 """
 
 from mitlc.spec.model import CRITERIA, OPTIONS, InitRange, PropDef, Requirement, Spec
