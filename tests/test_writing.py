@@ -1,11 +1,12 @@
-"""Files mitlc writes (issue 29): the folder lock, the user's files, write failures.
+"""Files mitlc writes (issue 29): the folder lock, the user's files, a sweep's folder, write failures.
 
 Every reproducer of the audit is here: a write that cannot happen (a read-only or full filesystem, an
 immutable file or folder, ``/proc/self/status``, a folder given as a file) is one line naming the option
 or file and exit 2, never a traceback, and leaves nothing behind; no manifest makes a user's file
-mitlc's to remove; two processes never hold a folder's lock at once (a stress test that fails on the
-lock before issue 29); a temporary file a kill -9 left is removed when the folder is next opened; a
-set that fails while being written leaves the earlier set whole.
+mitlc's to remove; a sweep refuses a folder of the user's files; two processes never hold a folder's
+lock at once (a stress test that fails on the lock before issue 29); a temporary file a kill -9 left is
+removed when the folder is next opened; a set that fails while being written leaves the earlier set
+whole.
 """
 
 from __future__ import annotations
@@ -308,6 +309,76 @@ def test_only_names_mitlc_writes_are_ever_removed(tmp_path, spec):
     (d / "notes.txt").write_text("mine")
     assert run("train", "--spec", spec, "--runs", 1, "--trials", 1, "-q", "--no-plots", "--out", d).exit_code == 0
     assert listing(d) == [MANIFEST, "metrics.json", "notes.txt", "params.npz"]
+
+
+# ---------------------------------------------------------------- item 3: a sweep's folder
+
+SWEEP = ("sweep", "GRID", "--grid", "sigma=1", "--seeds", 1, "--runs", 1, "--trials", 1, "-q", "--no-plot")
+
+
+def sweep(spec: Path, out: Path):
+    return run(*[spec if a == "GRID" else a for a in SWEEP], "--out", out)
+
+
+@pytest.mark.parametrize(
+    "files",
+    [{"results.csv": "a,b\n1,2\n"}, {"results.json": '{"a": 1}\n'}, {"results.json": "not json"}, {"notes.txt": "x"}],
+)
+def test_a_sweep_refuses_a_folder_of_the_users_files(tmp_path, spec, files):
+    """Issue 29 item 3: ``sweep --out d`` replaced a user's results.csv; a user's results.json gave
+    "cannot read earlier results: 'header'"."""
+    d = tmp_path / "d"
+    d.mkdir()
+    for name, text in files.items():
+        (d / name).write_text(text)
+    r = sweep(spec, d)
+    shown = ", ".join(sorted(files))
+    one_line(
+        r,
+        f"--out: error: {d} holds files that are not a mitlc sweep ({shown}); a sweep writes only into a new or "
+        "empty folder or one of its own sweeps: give another --out",
+    )
+    assert {p.name: p.read_text() for p in d.iterdir()} == files  # untouched, and no lock left
+
+
+def test_a_sweeps_results_say_they_are_a_sweeps_and_an_older_one_is_continued(tmp_path, spec):
+    d = tmp_path / "d"
+    assert sweep(spec, d).exit_code == 0
+    data = json.loads((d / "results.json").read_text())
+    assert (data["format"], data["version"]) == ("mitlc-sweep", 1) and len(data["results"]) == 1
+    assert listing(d) == ["results.csv", "results.json"]  # the lock is gone with the sweep
+    del data["format"], data["version"]  # as a sweep wrote it before the format key
+    (d / "results.json").write_text(json.dumps(data))
+    (d / "notes.txt").write_text("mine")  # the user's file in the sweep's own folder: left alone
+    r = run(*[spec if a == "GRID" else a for a in SWEEP[:-2]], "--no-plot", "--out", d)
+    assert r.exit_code == 0, r.output
+    assert "0 tasks run in" in r.output and "1 done earlier" in r.output
+    assert json.loads((d / "results.json").read_text())["format"] == "mitlc-sweep"
+    assert (d / "notes.txt").read_text() == "mine"
+
+
+def test_sweep_out_that_cannot_be_written_is_one_line(tmp_path, spec):
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    one_line(
+        sweep(spec, afile / "sub"), f"--out: error: cannot create the output folder {afile / 'sub'}: {afile} is a file"
+    )
+    assert afile.read_text() == "mine"
+    with mount_tmpfs(tmp_path / "ro", read_only=True) as ro:
+        one_line(
+            sweep(spec, ro / "sw"), f"--out: error: cannot create the output folder {ro / 'sw'}: Read-only file system"
+        )
+        one_line(sweep(spec, ro), f"--out: error: cannot write into {ro}: Read-only file system")
+    with mount_tmpfs(tmp_path / "full", fill=True) as full:
+        one_line(sweep(spec, full / "sw"), f"--out: error: cannot write into {full / 'sw'}: No space left on device")
+        assert listing(full) == ["fill"]
+
+
+def test_a_sweep_on_a_disk_that_fills_at_its_first_write_is_one_line(tmp_path, spec, monkeypatch):
+    d = tmp_path / "sw"
+    faults = Faults(monkeypatch, tmp_path, "write", 2)  # 1: the lock's pid; 2: results.json
+    one_line(sweep(spec, d), f"{d / 'results.json'}: error: cannot write: No space left on device")
+    assert faults.fired and not d.exists()  # the folder it made is gone again
 
 
 # ---------------------------------------------------------------- item 4: the lock
