@@ -102,14 +102,14 @@ def test_a_failed_write_after_training_keeps_the_results(tmp_path, monkeypatch):
     import mitlc.cli.outputs as outputs
 
     out = tmp_path / "out"
-    real = outputs.atomic_write
+    real = outputs.stage
 
-    def full_disk(path, data):
-        if Path(path).parent == out and Path(path).name != MANIFEST:
+    def full_disk(target, data, mode=None):
+        if Path(target).parent == out and Path(target).name != MANIFEST:
             raise OSError(28, "No space left on device")
-        real(path, data)
+        return real(target, data, mode)
 
-    monkeypatch.setattr(outputs, "atomic_write", full_disk)
+    monkeypatch.setattr(outputs, "stage", full_disk)
     monkeypatch.setattr(outputs.tempfile, "gettempdir", lambda: str(tmp_path / "rescue"))
     r = _train(["--trials", "4"], out)
     assert r.exit_code == 2 and "Traceback" not in r.output
@@ -118,7 +118,8 @@ def test_a_failed_write_after_training_keeps_the_results(tmp_path, monkeypatch):
     assert f"mitlc train --resume {saved}" in r.output
     assert json.loads((saved / "metrics.json").read_text())["trials"] == 4
     assert read_manifest(saved)["state"] == "complete"
-    monkeypatch.setattr(outputs, "atomic_write", real)
+    assert not out.exists()  # the folder it created for the failed set is gone: no half set, no temporary file
+    monkeypatch.setattr(outputs, "stage", real)
     r = CliRunner().invoke(main, ["train", "--resume", str(saved), "--trials", "6", "-q"])  # and it resumes
     assert r.exit_code == 0, r.output
     assert json.loads((saved / "metrics.json").read_text())["trials"] == 6
@@ -181,6 +182,7 @@ def test_a_folder_of_the_users_files_is_refused_not_cleaned(tmp_path):
 
 def test_a_second_training_into_a_locked_folder_is_refused(tmp_path):
     out = tmp_path / "out"
+    out.mkdir()  # (a folder OutputSet creates and leaves empty goes at close)
     held = OutputSet(out).open()
     try:
         r = _train(["--trials", "2"], out)

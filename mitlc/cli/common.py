@@ -14,11 +14,12 @@ from typing import Any
 import click
 
 from mitlc.errors import InputError, MitlError
-from mitlc.fileio import atomic_write
+from mitlc.fileio import atomic_write, check_writable
 
 __all__ = [
     "handle_errors",
     "atomic_write",
+    "check_writable",
     "compile_options",
     "output_option",
     "plant_file_option",
@@ -122,11 +123,12 @@ def compile_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def output_option(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """The ``-o/--output FILE`` option of the commands that print a result."""
+    """The ``-o/--output FILE`` option of the commands that print a result (checked by
+    :func:`write_result`, which names it ``-o FILE`` in its errors)."""
     return click.option(
         "-o",
         "--output",
-        type=click.Path(dir_okay=False),
+        type=click.Path(),
         default=None,
         help="Write to this file (atomically) instead of standard output.",
     )(fn)
@@ -134,12 +136,18 @@ def output_option(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 def write_result(output: str | None, fmt: str, make: Callable[[], str | bytes]) -> None:
     """Write what ``--format fmt`` made: to ``output`` atomically, else text to standard output
-    (a picture format needs ``-o FILE``, checked before anything is made)."""
+    (a picture format needs ``-o FILE``; a file that cannot be written, a folder given as the file,
+    a read-only or full disk, is refused before anything is made: one line, ``-o FILE: error: ...``)."""
     if fmt in PICTURES and output is None:
         raise InputError(f"--format {fmt} needs -o FILE", file="--output")
+    label = f"-o {output}"
+    if output is not None:
+        if output == "":
+            raise InputError("an empty file name", file="-o ''")
+        check_writable(output, label)
     data = make()
     if output is not None:
-        atomic_write(output, data)
+        atomic_write(output, data, label)
         return
     assert isinstance(data, str)  # only pictures are bytes, and they were refused above without -o
     click.echo(data, nl=not data.endswith("\n"))

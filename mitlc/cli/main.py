@@ -115,7 +115,7 @@ def _one_line(exc: click.exceptions.ClickException) -> str:
     message = " ".join(exc.format_message().split())
     param = getattr(exc, "param", None)
     if isinstance(exc, click.BadParameter) and param is not None and ctx is not None:
-        where = param.get_error_hint(ctx).strip("'").split(" / ")[0]
+        where = param.get_error_hint(ctx).split(" / ")[0].strip("'")
         if not isinstance(exc, click.MissingParameter):  # its message is empty: keep click's "Missing ..."
             message = " ".join(exc.message.split())
     help_of = f" ({ctx.command_path} --help)" if ctx is not None and isinstance(exc, click.UsageError) else ""

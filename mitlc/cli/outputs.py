@@ -1,26 +1,29 @@
 """The files a training writes into ``--out``, kept as one consistent set.
 
-* **Before training**, :meth:`OutputSet.open` creates the folder, proves it writable
-  (a probe file) and takes its lock (``.mitlc.lock``, created exclusively; a lock
-  whose process is gone is taken over), so that a bad ``--out`` fails before any
-  work and two trainings never write into one folder at once.
+* **Before training**, :meth:`OutputSet.open` creates the folder and takes its lock
+  (``fcntl.flock`` on ``.mitlc.lock``, held until :meth:`OutputSet.close`; the file says
+  who holds it), writing the holder's pid into it: a folder that cannot be written (a
+  full disk, read-only) fails there, before any work, and leaves nothing behind. Two
+  trainings never write into one folder at once; a dead process holds no lock. Temporary
+  files a killed mitlc left there (``.NAME.PID-XXXXXXXX.mitlc-tmp``) are removed.
 * **While training**, :meth:`OutputSet.checkpoint` replaces ``params.npz`` (the
-  resume checkpoint) atomically every so often, so a kill -9 loses at most that
-  much.
-* **After training**, :meth:`OutputSet.write` writes the whole set: first a
-  manifest that says the set is being written, then every file (each atomic),
-  then the manifest with each file's SHA-256, written last. A set whose manifest
-  says ``"state": "complete"`` and whose files match their hashes is one
-  training's; files of an earlier set that the new one does not have (a
-  ``rollout.png`` before ``--no-plots``) are removed, and only those the earlier
-  manifest lists. When the folder cannot be written any more (a full disk), the
-  set goes to a fallback folder and the error says where.
+  resume checkpoint) every so often, so a kill -9 loses at most that much.
+* **After training**, :meth:`OutputSet.write` writes the whole set as one change: every
+  new file is first written beside its target (a temporary file, on disk), then the
+  manifest says ``"state": "writing"``, the files are renamed over their targets, an
+  earlier set's files the new one does not have (a ``rollout.png`` before ``--no-plots``)
+  are removed, and the manifest is replaced by one saying ``"state": "complete"`` with
+  each file's SHA-256. When any step fails (a full disk, an immutable file) every file
+  already changed is put back as it was (kept as a hard link until the end), so the
+  folder holds the earlier set, whole, and the new one goes to a fallback folder that
+  the error names. A checkpoint is the same change with ``"state": "checkpoint"``.
 
 The manifest is recognisably mitlc's (``"format": "mitlc-run"``, ``"version": 1``) and names
 the spec trained (``spec``, ``spec_sha256``). :meth:`OutputSet.open` refuses a folder that holds
 anything but mitlc's own set (files without such a manifest are the user's: never cleaned,
 never overwritten), and a folder holding a training of another spec (a re-run of the same spec
-replaces its set). Without ``--out`` a training gets a new folder ``runs/<spec>_<N>``
+replaces its set). mitlc only ever removes names it writes itself (:data:`OWNED`, ``plants/NAME.py``),
+whatever a manifest lists. Without ``--out`` a training gets a new folder ``runs/<spec>_<N>``
 (:meth:`OutputSet.numbered`), as Stable-Baselines3 and TensorBoard number their runs.
 """
 
@@ -30,16 +33,16 @@ import hashlib
 import json
 import os
 import re
-import socket
+import stat
 import tempfile
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from mitlc.errors import InputError
-from mitlc.fileio import atomic_write
+from mitlc.fileio import FolderLock, LockBusy, clean_stale_temps, lock_owner_pid, stage, temp_path
 
-__all__ = ["OutputSet", "MANIFEST", "LOCK", "FORMAT", "VERSION", "read_manifest", "spec_record"]
+__all__ = ["OutputSet", "MANIFEST", "LOCK", "FORMAT", "VERSION", "OWNED", "owned", "read_manifest", "spec_record"]
 
 MANIFEST = "manifest.json"
 LOCK = ".mitlc.lock"
@@ -47,15 +50,36 @@ FORMAT = "mitlc-run"
 VERSION = 1
 """The ``format`` and ``version`` keys that make a ``manifest.json`` mitlc's own."""
 
+OWNED = frozenset({"params.npz", "metrics.json", "rollout.png", "learning_curve.png"})
+"""The files a training writes into its folder, besides ``manifest.json`` and a plant file's copy
+``plants/NAME.py``: the only names mitlc ever removes there (tests/test_writing.py keeps this list
+in step with what ``mitlc train`` writes)."""
+
+_PLANT_COPY = re.compile(r"plants/[A-Za-z0-9_][A-Za-z0-9_.-]*\.py")
+_MANIFEST_LIMIT = 1 << 24
+"""A manifest is a few hundred bytes; a ``manifest.json`` larger than 16 MiB is not mitlc's."""
+
+
+def owned(name: object) -> bool:
+    """Whether ``name`` (relative to a training folder) is a file mitlc writes there."""
+    return isinstance(name, str) and (name in OWNED or _PLANT_COPY.fullmatch(name) is not None)
+
 
 def read_manifest(out: Path) -> dict | None:
     """mitlc's manifest of ``out``, or None when there is none, it cannot be read, or it is not
-    mitlc's (no ``"format": "mitlc-run"``: a user's file of that name is theirs)."""
+    mitlc's: no ``"format": "mitlc-run"``, or it lists a file mitlc does not write (a user's file
+    of that name is theirs, and no manifest makes another file mitlc's)."""
+    path = Path(out) / MANIFEST
     try:
-        data = json.loads((Path(out) / MANIFEST).read_text(encoding="utf-8"))
+        if path.stat().st_size > _MANIFEST_LIMIT:
+            return None
+        data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
     if not isinstance(data, dict) or data.get("format") != FORMAT or not isinstance(data.get("version"), int):
+        return None
+    files, owed = data.get("files", {}), data.get("earlier", [])
+    if not isinstance(files, dict) or not isinstance(owed, list) or not all(map(owned, [*files, *owed])):
         return None
     return data
 
@@ -67,16 +91,6 @@ def spec_record(spec: object) -> dict[str, str]:
         "spec": str(getattr(spec, "path", None) or "<spec>"),
         "spec_sha256": hashlib.sha256(source.encode("utf-8")).hexdigest(),
     }
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 class OutputSet:
@@ -100,7 +114,11 @@ class OutputSet:
         self.continuing = continuing
         """The folder's own checkpoint is being continued (``--resume DIR`` into DIR): taken as a
         training even without mitlc's manifest (one written before it had the format key)."""
-        self._locked = False
+        self._lock_file: FolderLock | None = None
+        self._made: list[Path] = []
+        """Folders this set created (innermost first): removed again when :meth:`open` fails."""
+        self._created: list[Path] = []
+        """The same once open: removed at :meth:`close` if they are still empty."""
 
     @classmethod
     def numbered(
@@ -123,6 +141,7 @@ class OutputSet:
         for parent_of in [parent, *parent.parents]:
             if parent_of.exists() and not parent_of.is_dir():
                 raise InputError(f"cannot create the output folder {parent}: {parent_of} is a file", file="--out")
+        made = _missing(parent)
         while True:
             out = parent / f"{stem}_{n}"
             try:
@@ -131,10 +150,13 @@ class OutputSet:
                 n += 1
                 continue
             except OSError as exc:
+                _remove_folders(made)
                 raise InputError(
                     f"cannot create the output folder {out}: {exc.strerror or exc}", file="--out"
                 ) from None
-            return cls(out, record=record, keep=keep)
+            outset = cls(out, record=record, keep=keep)
+            outset._made = [out, *made]
+            return outset
 
     # ------------------------------------------------------------ before
     def open(self) -> OutputSet:
@@ -142,19 +164,25 @@ class OutputSet:
         for parent in [out, *out.parents]:
             if parent.exists() and not parent.is_dir():
                 raise InputError(f"cannot create the output folder {out}: {parent} is a file", file=self.option)
+        made = _missing(out)
         try:
             out.mkdir(parents=True, exist_ok=True)
-            fd, probe = tempfile.mkstemp(prefix=".probe.", dir=out)
-            os.close(fd)
-            os.unlink(probe)
         except OSError as exc:
+            _remove_folders(made)
             raise InputError(f"cannot write into {out}: {exc.strerror or exc}", file=self.option) from None
-        self._lock()
+        self._made = [*made, *self._made]
         try:
+            self._lock()  # its pid written and on disk: the probe that the folder takes a file
             self._check_ours()
-        except InputError:
+        except BaseException:
             self.close()
+            _remove_folders(self._made)
             raise
+        self._created, self._made = self._made, []
+        before = time.time() - 60  # a temporary file last written a minute before the lock is nobody's
+        clean_stale_temps(out, before, legacy={*OWNED, MANIFEST})
+        if (out / "plants").is_dir():
+            clean_stale_temps(out / "plants", before)
         return self
 
     def _check_ours(self) -> None:
@@ -191,34 +219,28 @@ class OutputSet:
             )
 
     def _lock(self) -> None:
-        path = self.out / LOCK
-        me = f"{os.getpid()} {socket.gethostname()}\n"
-        for _ in range(2):
-            try:
-                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                try:
-                    pid_text, host = (path.read_text().split() + ["", ""])[:2]
-                    pid = int(pid_text)
-                except (OSError, ValueError):
-                    pid, host = -1, ""
-                if pid > 0 and host == socket.gethostname() and _alive(pid):
-                    raise InputError(
-                        f"another mitlc (pid {pid}) is writing into {self.out}: wait for it, or give another folder",
-                        file=self.option,
-                    ) from None
-                path.unlink(missing_ok=True)  # its process is gone: a stale lock
-                continue
-            with os.fdopen(fd, "w") as fh:
-                fh.write(me)
-            self._locked = True
-            return
-        raise InputError(f"cannot take the lock {path}", file=self.option)
+        """Take the folder's lock (see :class:`mitlc.fileio.FolderLock`), or say who holds it."""
+        lock = FolderLock(self.out / LOCK)
+        try:
+            lock.acquire()
+        except LockBusy as busy:
+            pid = lock_owner_pid(busy.owner)
+            who = f"another mitlc (pid {pid})" if pid is not None else "another mitlc"
+            raise InputError(
+                f"{who} is writing into {self.out}: wait for it, or give another folder", file=self.option
+            ) from None
+        except OSError as exc:
+            raise InputError(f"cannot write into {self.out}: {exc.strerror or exc}", file=self.option) from None
+        self._lock_file = lock
 
     def close(self) -> None:
-        if self._locked:
-            (self.out / LOCK).unlink(missing_ok=True)
-            self._locked = False
+        """Let go of the folder; a folder this set created and nothing was written into (a failed
+        write went to the fallback folder) goes too."""
+        if self._lock_file is not None:
+            self._lock_file.release()
+            self._lock_file = None
+        _remove_folders(self._created)
+        self._created = []
 
     def __enter__(self) -> OutputSet:
         return self.open()
@@ -228,20 +250,21 @@ class OutputSet:
 
     # ------------------------------------------------------------ during
     def checkpoint(self, name: str, data: bytes, **info: object) -> None:
-        """Replace the checkpoint file ``name``; the manifest says the set is a checkpoint."""
+        """Replace the checkpoint file ``name`` (and the kept files); the manifest says the set is a
+        checkpoint. On a failure (an :class:`OSError`) the folder is as it was."""
         earlier = _earlier(read_manifest(self.out))
-        atomic_write(self.out / name, data)
-        for kept, content in self.keep.items():
-            _write_file(self.out, kept, content)
-        self._manifest("checkpoint", {name: data, **self.keep}, info, earlier=earlier)
+        files = {name: data, **self.keep}
+        writing = self._doc("writing", {}, info, sorted({*earlier, *files}))
+        final = self._doc("checkpoint", files, info, [n for n in earlier if n not in files])
+        _replace_set(self.out, files, [name, *sorted(self.keep)], [], writing, final)
 
     # ------------------------------------------------------------ after
     def write(self, files: Mapping[str, bytes | str], first: str | None = None, **info: object) -> Path:
         """Write the set (``first``, the checkpoint, before the others); the folder written to.
 
-        On a write failure the set goes to a fallback folder instead and an
-        :class:`InputError` says where; the files are all in memory, so nothing
-        computed is lost.
+        On a write failure the folder keeps its earlier set, whole, the set goes to a fallback
+        folder instead and an :class:`InputError` says where; the files are all in memory, so
+        nothing computed is lost.
         """
         payload = {k: v.encode("utf-8") if isinstance(v, str) else v for k, v in files.items()}
         payload.update(self.keep)
@@ -267,57 +290,141 @@ class OutputSet:
 
     def _write_into(self, out: Path, payload: Mapping[str, bytes], order: list[str], info: Mapping) -> None:
         earlier = _earlier(read_manifest(out))
-        self._manifest("writing", {}, info, out, earlier=earlier)
-        for name in order:
-            _write_file(out, name, payload[name])
-        for name in earlier:  # an earlier set's files this one does not have (only those it listed)
-            if name not in payload:
-                (out / name).unlink(missing_ok=True)
-                if "/" in name:  # plants/NAME.py: its folder goes when it is empty
-                    try:
-                        (out / name).parent.rmdir()
-                    except OSError:
-                        pass
-        self._manifest("complete", payload, info, out)
+        remove = [n for n in earlier if n not in payload]  # an earlier set's files this one lacks
+        writing = self._doc("writing", {}, info, sorted({*earlier, *payload}))
+        final = self._doc("complete", payload, info, [])
+        _replace_set(out, payload, order, remove, writing, final)
+        if any("/" in n for n in remove):  # plants/NAME.py: its folder goes when it is empty
+            try:
+                (out / "plants").rmdir()
+            except OSError:
+                pass
 
-    def _manifest(
-        self,
-        state: str,
-        files: Mapping[str, bytes],
-        info: Mapping,
-        out: Path | None = None,
-        earlier: list[str] | None = None,
-    ) -> None:
+    def _doc(self, state: str, files: Mapping[str, bytes], info: Mapping, earlier: Sequence[str]) -> bytes:
         doc: dict = {"format": FORMAT, "version": VERSION, "state": state, **self.record, **info}
         doc["files"] = {k: hashlib.sha256(v).hexdigest() for k, v in sorted(files.items())}
         if earlier:
-            doc["earlier"] = earlier
-        atomic_write((out or self.out) / MANIFEST, json.dumps(doc, indent=1) + "\n")
+            doc["earlier"] = list(earlier)
+        return (json.dumps(doc, indent=1) + "\n").encode("utf-8")
 
 
-def _write_file(out: Path, name: str, data: bytes) -> None:
-    if "/" in name:
-        (out / name).parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(out / name, data)
+def _missing(folder: Path) -> list[Path]:
+    """The folders of ``folder``'s path that do not exist yet, innermost first."""
+    missing = []
+    for f in [folder, *folder.parents]:
+        if f.exists():
+            break
+        missing.append(f)
+    return missing
 
 
-_PLAIN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+def _remove_folders(folders: Sequence[Path]) -> None:
+    """Remove the folders a failed start created (innermost first), each only if it is empty."""
+    for f in folders:
+        try:
+            f.rmdir()
+        except OSError:
+            return
+
+
+def _mode_of(target: Path) -> int | None:
+    try:
+        st = os.lstat(target)
+    except OSError:
+        return None
+    return stat.S_IMODE(st.st_mode) if stat.S_ISREG(st.st_mode) else None
+
+
+def _backup(target: Path) -> Path | None:
+    """What ``target`` holds now, kept under a temporary name (a hard link, else a copy) until the
+    change is done; None when there is no such file."""
+    try:
+        st = os.lstat(target)
+    except FileNotFoundError:
+        return None
+    if stat.S_ISDIR(st.st_mode):
+        return None  # a folder of that name: the rename over it fails, and nothing is changed
+    keep = temp_path(target)
+    try:
+        os.link(target, keep, follow_symlinks=False)  # a symlink is kept as the link it is
+    except OSError:  # no hard links here (or an immutable file): a copy
+        if not stat.S_ISREG(st.st_mode):
+            raise
+        return stage(target, target.read_bytes(), stat.S_IMODE(st.st_mode))
+    return keep
+
+
+def _replace_set(
+    out: Path,
+    files: Mapping[str, bytes],
+    order: Sequence[str],
+    remove: Sequence[str],
+    writing: bytes,
+    final: bytes,
+) -> None:
+    """Replace ``files`` in ``out`` (in ``order``) and remove ``remove``, as one change: the manifest
+    ``writing`` first, ``final`` last. Any failure (an :class:`OSError`, or an interrupt) puts every
+    file back as it was and removes every temporary file before it is raised again."""
+    staged: dict[str, Path] = {}
+    kept: dict[str, Path | None] = {}
+    changed: list[str] = []
+    made: list[Path] = []
+    try:
+        for name in order:  # 1. the new files, each beside its target and on disk
+            target = out / name
+            if "/" in name and not target.parent.is_dir():
+                target.parent.mkdir()
+                made.insert(0, target.parent)
+            staged[name] = stage(target, files[name], _mode_of(target))
+        staged[" writing"] = stage(out / MANIFEST, writing, _mode_of(out / MANIFEST))
+        staged[" final"] = stage(out / MANIFEST, final, _mode_of(out / MANIFEST))
+        for name in dict.fromkeys([MANIFEST, *order, *remove]):  # 2. what is there now, kept
+            kept[name] = _backup(out / name)
+        os.replace(staged[" writing"], out / MANIFEST)  # 3. the change
+        del staged[" writing"]
+        changed.append(MANIFEST)
+        for name in order:
+            os.replace(staged[name], out / name)
+            del staged[name]
+            changed.append(name)
+        for name in remove:
+            if kept.get(name) is not None:
+                os.unlink(out / name)
+                changed.append(name)
+        os.replace(staged[" final"], out / MANIFEST)
+        del staged[" final"]
+    except BaseException:
+        for name in reversed(changed):  # put back what was there
+            try:
+                before = kept.pop(name, None)
+                if before is not None:
+                    os.replace(before, out / name)
+                else:
+                    os.unlink(out / name)
+            except OSError:
+                pass
+        for tmp in [*staged.values(), *(k for k in kept.values() if k is not None)]:
+            _unlink_quietly(tmp)
+        _remove_folders(made)
+        raise
+    for k in kept.values():
+        if k is not None:
+            _unlink_quietly(k)
+
+
+def _unlink_quietly(path: Path) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
 
 
 def _earlier(manifest: dict | None) -> list[str]:
-    """The files an earlier set wrote (its own and those it still owed a clean-up): plain names, or
-    ``plants/NAME`` (a plant file's copy), nothing else."""
+    """The files an earlier set wrote (its own and those it still owed a clean-up), only names
+    mitlc itself writes (:func:`owned`): a manifest never makes another file mitlc's to remove."""
     if manifest is None:
         return []
     files = manifest.get("files", {})
     owed = manifest.get("earlier", [])
     names = [*(files if isinstance(files, dict) else []), *(owed if isinstance(owed, list) else [])]
-    ok = {
-        n
-        for n in names
-        if isinstance(n, str)
-        and all(_PLAIN.fullmatch(part) for part in n.split("/"))
-        and n.count("/") <= 1
-        and (n.count("/") == 0 or n.startswith("plants/"))
-    }
-    return sorted(ok - {MANIFEST})
+    return sorted({n for n in names if owned(n)})

@@ -33,9 +33,9 @@ import click
 import numpy as np
 
 from mitlc.cli import interrupt
-from mitlc.cli.common import atomic_write, compile_options, handle_errors, plant_file_option
+from mitlc.cli.common import atomic_write, check_writable, compile_options, handle_errors, plant_file_option
 from mitlc.cli.outputs import OutputSet
-from mitlc.errors import InputError, TrainingError
+from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import json_text
 
 __all__ = ["train", "simulate", "find_default_spec"]
@@ -429,20 +429,30 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
 
     start = time.perf_counter()
     saved = [start]
+    warned: list[OSError] = []
 
     def progress(trial: int, returns: np.ndarray) -> None:
         interrupt.check()
         bar.update(f"mean return {_mean(agent.returns[:, -10:]):.1f}")
         now = time.perf_counter()
         if checkpoint_every and now - saved[0] >= checkpoint_every:  # kill -9 loses at most this much
-            outset.checkpoint(
-                PARAMS,
-                agent.to_bytes(),
-                trial=agent.trial,
-                seed=agent.seed,
-                runs=agent.runs,
-                wall_s=round(wall_before + now - start, 3),
-            )
+            try:
+                outset.checkpoint(
+                    PARAMS,
+                    agent.to_bytes(),
+                    trial=agent.trial,
+                    seed=agent.seed,
+                    runs=agent.runs,
+                    wall_s=round(wall_before + now - start, 3),
+                )
+            except OSError as exc:  # the folder keeps its last checkpoint; the results still go somewhere
+                if not warned:
+                    warned.append(exc)
+                    click.echo(
+                        f"warning: cannot write a checkpoint into {out} ({exc.strerror or exc}); training goes "
+                        "on, and its results go to a fallback folder if the folder stays unwritable",
+                        err=True,
+                    )
             saved[0] = time.perf_counter()
 
     interrupted = False
@@ -466,9 +476,16 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
             files, first=PARAMS, trial=agent.trial, seed=agent.seed, runs=agent.runs, wall_s=round(wall, 3)
         )
     except KeyboardInterrupt:  # while writing: the checkpoint goes first, so the training resumes from it
-        outset.checkpoint(
-            PARAMS, agent.to_bytes(), trial=agent.trial, seed=agent.seed, runs=agent.runs, wall_s=round(wall, 3)
-        )
+        try:
+            outset.checkpoint(
+                PARAMS, agent.to_bytes(), trial=agent.trial, seed=agent.seed, runs=agent.runs, wall_s=round(wall, 3)
+            )
+        except OSError as exc:
+            raise InputError(
+                f"interrupted after trial {agent.trial}, and the checkpoint cannot be written into {outset.out} "
+                f"({exc.strerror or exc})",
+                file="--out",
+            ) from None
         interrupted, out = True, outset.out
     if interrupted:
         click.echo(
@@ -545,14 +562,14 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
 @click.option(
     "--plot",
     "plot_path",
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     default=None,
     help="Write a figure of the first rollouts here (PNG); without it no figure is written.",
 )
 @click.option(
     "--trace",
     "trace_path",
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     default=None,
     help="Also write each rollout as a trace that 'mitlc check' reads: FILE.csv or FILE.npz for one "
     "rollout, FILE_000.csv, FILE_001.csv, ... for several (.npz traces carry the inputs u too).",
@@ -569,6 +586,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
     from mitlc.learn.policy import load_sacpn
     from mitlc.learn.sacpn import read_meta
 
+    _check_outputs(plot_path, trace_path)
     if any(Path(p).is_file() for p in policy_dirs):  # a Stable-Baselines3 model (mitlc.gym.Sb3Policy)
         _simulate_sb3(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_path)
         return
@@ -625,7 +643,17 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
             )
     _write_traces(ro, agent.plant.state_names, trace_path)
     if plot_path is not None:
-        atomic_write(plot_path, _rollout_png(agent, ro, res.satisfied, f"{k}/{n} satisfy"))
+        atomic_write(plot_path, _rollout_png(agent, ro, res.satisfied, f"{k}/{n} satisfy"), f"--plot {plot_path}")
+
+
+def _check_outputs(plot_path: str | None, trace_path: str | None) -> None:
+    """Before any rollout: ``--plot`` and ``--trace`` can be written (a trace's suffix, its folder,
+    the files themselves); one line naming the option and file otherwise."""
+    if trace_path is not None and Path(trace_path).suffix.lower() not in (".csv", ".npz"):
+        raise InputError("a trace is written as .csv or .npz", file=f"--trace {trace_path}")
+    for option, path in (("--plot", plot_path), ("--trace", trace_path)):
+        if path is not None:
+            check_writable(path, f"{option} {path}")
 
 
 def _trained_on(meta: dict, spec) -> str:
@@ -680,9 +708,18 @@ def _write_traces(ro, names, trace_path) -> None:
     base = Path(trace_path)
     paths = [base] if n == 1 else [base.with_name(f"{base.stem}_{i:03d}{base.suffix}") for i in range(n)]
     t = np.arange(ro.states.shape[1]) * ro.dt
-    for i, p in enumerate(paths):
-        cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
-        write_trace(p, t, cols, {"u": ro.actions[i]})
+    new = [p for p in paths if not p.exists()]
+    written: list[Path] = []
+    try:
+        for i, p in enumerate(paths):
+            cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
+            write_trace(p, t, cols, {"u": ro.actions[i]})
+            written.append(p)
+    except MitlError:  # a failed write (a full disk): none of this command's new traces is left behind
+        for p in written:
+            if p in new:
+                p.unlink(missing_ok=True)
+        raise
     click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
 
 
@@ -727,4 +764,4 @@ def _simulate_sb3(paths, spec_path, rollouts, seed, starts, plot_path, trace_pat
     click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
     _write_traces(ro, policy.plant.state_names, trace_path)
     if plot_path is not None:
-        atomic_write(plot_path, _rollout_png(policy, ro, res.satisfied, f"{k}/{n} satisfy"))
+        atomic_write(plot_path, _rollout_png(policy, ro, res.satisfied, f"{k}/{n} satisfy"), f"--plot {plot_path}")

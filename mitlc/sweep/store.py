@@ -2,6 +2,12 @@
 authoritative record) and ``results.csv``, both rewritten atomically after
 every finished task, keyed by the task's configuration and seed so a re-run
 skips what is done and never counts a task twice.
+
+A sweep's folder is recognisably its own: ``results.json`` starts with ``"format": "mitlc-sweep"``,
+``"version": 1`` (one written before the key, with its ``header`` and ``results``, is a sweep's too).
+A folder holding anything else and no such file is the user's: a sweep refuses it (one line,
+exit 2) and writes nothing there. The folder is locked while a sweep writes to it
+(``fcntl.flock`` on ``.sweep.lock``, :class:`mitlc.fileio.FolderLock`).
 """
 
 from __future__ import annotations
@@ -9,17 +15,26 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import stat
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from mitlc.errors import InputError
-from mitlc.fileio import atomic_write, json_text
+from mitlc.fileio import FolderLock, LockBusy, atomic_write, clean_stale_temps, json_text, lock_owner_pid
 from mitlc.sweep.grid import Axis
 
 RESULTS_JSON = "results.json"
 RESULTS_CSV = "results.csv"
+SWEEP_PNG = "sweep.png"
 LOCK_FILE = ".sweep.lock"
+FORMAT = "mitlc-sweep"
+VERSION = 1
+"""The ``format`` and ``version`` keys that make a ``results.json`` a mitlc sweep's."""
+_RESULTS_LIMIT = 1 << 30
+"""A ``results.json`` larger than 1 GiB (two million results) is not read."""
 
 
 # ---------------------------------------------------------------- results on disk
@@ -54,39 +69,74 @@ class ResultStore:
         self.header = dict(header)
         self.records: dict[str, dict] = {}
         self.axes: list[Axis] = list(axes)
-        self._lock_fh: Any = None
+        self._lock: FolderLock | None = None
+        self._made: list[Path] = []
         self._load()
 
     # the directory lock
     def __enter__(self) -> ResultStore:
-        self.dir.mkdir(parents=True, exist_ok=True)
+        d = self.dir
+        for parent in [d, *d.parents]:
+            if parent.exists() and not parent.is_dir():
+                raise InputError(f"cannot create the output folder {d}: {parent} is a file", file="--out")
+        made = []
+        for f in [d, *d.parents]:
+            if f.exists():
+                break
+            made.append(f)
         try:
-            import fcntl
-        except ImportError:  # pragma: no cover - not POSIX: no lock
-            return self
-        fh = open(self.dir / LOCK_FILE, "a")
+            d.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            _remove_folders(made)
+            raise InputError(f"cannot create the output folder {d}: {exc.strerror or exc}", file="--out") from None
+        lock = FolderLock(d / LOCK_FILE)
         try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            fh.close()
-            raise InputError(f"another sweep is writing to {self.dir}", file="--out") from None
-        self._lock_fh = fh
+            lock.acquire()
+        except LockBusy as busy:
+            pid = lock_owner_pid(busy.owner)
+            raise InputError(
+                f"another sweep is writing to {d}{f' (pid {pid})' if pid is not None else ''}", file="--out"
+            ) from None
+        except OSError as exc:
+            _remove_folders(made)
+            raise InputError(f"cannot write into {d}: {exc.strerror or exc}", file="--out") from None
+        self._lock = lock
+        self._made = made
+        clean_stale_temps(d, time.time() - 60, legacy=(RESULTS_JSON, RESULTS_CSV, SWEEP_PNG))
         return self
 
     def __exit__(self, *exc: Any) -> None:
-        if self._lock_fh is not None:
-            self._lock_fh.close()
-            self._lock_fh = None
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
+        if self._made and not (self.dir / RESULTS_JSON).exists():  # it failed before its first write
+            _remove_folders(self._made)
+        self._made = []
 
     def _load(self) -> None:
-        path = self.dir / RESULTS_JSON
-        if not path.is_file():
-            return
+        d = self.dir
+        if not d.is_dir():
+            return  # a new folder (or a file: refused when the folder is made)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-            header, records = data["header"], data["results"]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise InputError(f"cannot read earlier results: {exc}", file=str(path)) from None
+            names = sorted(p.name for p in d.iterdir() if not p.name.startswith("."))
+        except OSError as exc:
+            raise InputError(f"cannot read {d}: {exc.strerror or exc}", file="--out") from None
+        path = d / RESULTS_JSON
+        data = _read_results(path) if RESULTS_JSON in names else None
+        if data is None:
+            if names:
+                shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+                raise InputError(
+                    f"{d} holds files that are not a mitlc sweep ({shown}); a sweep writes only into a new or "
+                    "empty folder or one of its own sweeps: give another --out",
+                    file="--out",
+                )
+            return
+        header, records = data.get("header"), data.get("results")
+        if not isinstance(header, dict) or not isinstance(records, list):
+            raise InputError(
+                "cannot read earlier results: 'header' is not an object or 'results' not a list", file=str(path)
+            )
         for k, v in self.header.items():
             if header.get(k) != v:
                 what = (
@@ -101,10 +151,6 @@ class ResultStore:
                     file="--out",
                     hint="choose another --out directory, or use the same spec, --runs and --trials",
                 )
-        if not isinstance(header, dict) or not isinstance(records, list):
-            raise InputError(
-                "cannot read earlier results: 'header' is not an object or 'results' not a list", file=str(path)
-            )
         for i, r in enumerate(records):
             if not (isinstance(r, dict) and isinstance(r.get("task"), str)):
                 raise InputError(f"cannot read earlier results: result {i + 1} has no 'task' key", file=str(path))
@@ -145,9 +191,11 @@ class ResultStore:
         axes = {a.name: {"kind": a.kind, "key": a.key} for a in self.axes}
         rows = ",\n".join("  " + _strict(r, separators=(",", ":")) for r in self.records.values())
         return (
-            f'{{"header": {_strict(self.header)},\n "axes": {_strict(axes)},\n "results": [\n{rows}\n ]}}\n'
+            f'{{"format": "{FORMAT}", "version": {VERSION},\n "header": {_strict(self.header)},\n '
+            f'"axes": {_strict(axes)},\n "results": [\n{rows}\n ]}}\n'
             if rows
-            else f'{{"header": {_strict(self.header)},\n "axes": {_strict(axes)},\n "results": []}}\n'
+            else f'{{"format": "{FORMAT}", "version": {VERSION},\n "header": {_strict(self.header)},\n '
+            f'"axes": {_strict(axes)},\n "results": []}}\n'
         )
 
     def write(self) -> None:
@@ -170,3 +218,31 @@ class ResultStore:
 def _strict(obj: object, **kw: object) -> str:
     """Strict JSON of one value (a non-finite number is null), without the trailing newline."""
     return json_text(obj, **kw).rstrip("\n")  # type: ignore[arg-type]
+
+
+def _read_results(path: Path) -> dict | None:
+    """A sweep's ``results.json``, or None when the file is not one (not a regular file, too large,
+    not JSON, or without the sweep's format key and not a sweep's from before it)."""
+    try:
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > _RESULTS_LIMIT:
+            return None
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+    if not isinstance(data, dict):
+        return None
+    if data.get("format") == FORMAT and isinstance(data.get("version"), int):
+        return data
+    header = data.get("header")
+    legacy = "format" not in data and isinstance(header, dict) and {"runs", "trials"} <= set(header)
+    return data if legacy and isinstance(data.get("results"), list) else None
+
+
+def _remove_folders(folders: Sequence[Path]) -> None:
+    """Remove the folders a failed start created (innermost first), each only if it is empty."""
+    for f in folders:
+        try:
+            f.rmdir()
+        except OSError:
+            return
