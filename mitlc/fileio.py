@@ -27,7 +27,7 @@ import re
 import secrets
 import socket
 import stat
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +49,8 @@ __all__ = [
     "finite_or_none",
     "npz_bytes",
     "cache_root",
+    "missing_folders",
+    "remove_folders",
 ]
 
 
@@ -419,6 +421,26 @@ def _read_path(path: Path) -> str:
             return fh.read(200).decode("utf-8", "replace")
     except OSError:
         return ""
+
+
+def missing_folders(folder: Path) -> list[Path]:
+    """The folders of ``folder``'s path that do not exist yet, innermost first: what a
+    ``mkdir(parents=True)`` would create, and what :func:`remove_folders` takes back."""
+    missing = []
+    for f in [folder, *folder.parents]:
+        if f.exists():
+            break
+        missing.append(f)
+    return missing
+
+
+def remove_folders(folders: Sequence[Path]) -> None:
+    """Remove the folders a failed start created (innermost first), each only if it is empty."""
+    for f in folders:
+        try:
+            f.rmdir()
+        except OSError:
+            return
 
 
 def lock_owner_pid(owner: str) -> int | None:

@@ -40,7 +40,16 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from mitlc.errors import InputError
-from mitlc.fileio import FolderLock, LockBusy, clean_stale_temps, lock_owner_pid, stage, temp_path
+from mitlc.fileio import (
+    FolderLock,
+    LockBusy,
+    clean_stale_temps,
+    lock_owner_pid,
+    missing_folders,
+    remove_folders,
+    stage,
+    temp_path,
+)
 
 __all__ = ["OutputSet", "MANIFEST", "LOCK", "FORMAT", "VERSION", "OWNED", "owned", "read_manifest", "spec_record"]
 
@@ -141,7 +150,7 @@ class OutputSet:
         for parent_of in [parent, *parent.parents]:
             if parent_of.exists() and not parent_of.is_dir():
                 raise InputError(f"cannot create the output folder {parent}: {parent_of} is a file", file="--out")
-        made = _missing(parent)
+        made = missing_folders(parent)
         while True:
             out = parent / f"{stem}_{n}"
             try:
@@ -150,7 +159,7 @@ class OutputSet:
                 n += 1
                 continue
             except OSError as exc:
-                _remove_folders(made)
+                remove_folders(made)
                 raise InputError(
                     f"cannot create the output folder {out}: {exc.strerror or exc}", file="--out"
                 ) from None
@@ -164,11 +173,11 @@ class OutputSet:
         for parent in [out, *out.parents]:
             if parent.exists() and not parent.is_dir():
                 raise InputError(f"cannot create the output folder {out}: {parent} is a file", file=self.option)
-        made = _missing(out)
+        made = missing_folders(out)
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            _remove_folders(made)
+            remove_folders(made)
             raise InputError(f"cannot write into {out}: {exc.strerror or exc}", file=self.option) from None
         self._made = [*made, *self._made]
         try:
@@ -176,7 +185,7 @@ class OutputSet:
             self._check_ours()
         except BaseException:
             self.close()
-            _remove_folders(self._made)
+            remove_folders(self._made)
             raise
         self._created, self._made = self._made, []
         before = time.time() - 60  # a temporary file last written a minute before the lock is nobody's
@@ -239,7 +248,7 @@ class OutputSet:
         if self._lock_file is not None:
             self._lock_file.release()
             self._lock_file = None
-        _remove_folders(self._created)
+        remove_folders(self._created)
         self._created = []
 
     def __enter__(self) -> OutputSet:
@@ -306,25 +315,6 @@ class OutputSet:
         if earlier:
             doc["earlier"] = list(earlier)
         return (json.dumps(doc, indent=1) + "\n").encode("utf-8")
-
-
-def _missing(folder: Path) -> list[Path]:
-    """The folders of ``folder``'s path that do not exist yet, innermost first."""
-    missing = []
-    for f in [folder, *folder.parents]:
-        if f.exists():
-            break
-        missing.append(f)
-    return missing
-
-
-def _remove_folders(folders: Sequence[Path]) -> None:
-    """Remove the folders a failed start created (innermost first), each only if it is empty."""
-    for f in folders:
-        try:
-            f.rmdir()
-        except OSError:
-            return
 
 
 def _mode_of(target: Path) -> int | None:
@@ -405,7 +395,7 @@ def _replace_set(
                 pass
         for tmp in [*staged.values(), *(k for k in kept.values() if k is not None)]:
             _unlink_quietly(tmp)
-        _remove_folders(made)
+        remove_folders(made)
         raise
     for k in kept.values():
         if k is not None:

@@ -23,7 +23,16 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.errors import InputError
-from mitlc.fileio import FolderLock, LockBusy, atomic_write, clean_stale_temps, json_text, lock_owner_pid
+from mitlc.fileio import (
+    FolderLock,
+    LockBusy,
+    atomic_write,
+    clean_stale_temps,
+    json_text,
+    lock_owner_pid,
+    missing_folders,
+    remove_folders,
+)
 from mitlc.sweep.grid import Axis
 
 RESULTS_JSON = "results.json"
@@ -79,15 +88,11 @@ class ResultStore:
         for parent in [d, *d.parents]:
             if parent.exists() and not parent.is_dir():
                 raise InputError(f"cannot create the output folder {d}: {parent} is a file", file="--out")
-        made = []
-        for f in [d, *d.parents]:
-            if f.exists():
-                break
-            made.append(f)
+        made = missing_folders(d)
         try:
             d.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            _remove_folders(made)
+            remove_folders(made)
             raise InputError(f"cannot create the output folder {d}: {exc.strerror or exc}", file="--out") from None
         lock = FolderLock(d / LOCK_FILE)
         try:
@@ -98,7 +103,7 @@ class ResultStore:
                 f"another sweep is writing to {d}{f' (pid {pid})' if pid is not None else ''}", file="--out"
             ) from None
         except OSError as exc:
-            _remove_folders(made)
+            remove_folders(made)
             raise InputError(f"cannot write into {d}: {exc.strerror or exc}", file="--out") from None
         self._lock = lock
         self._made = made
@@ -110,7 +115,7 @@ class ResultStore:
             self._lock.release()
             self._lock = None
         if self._made and not (self.dir / RESULTS_JSON).exists():  # it failed before its first write
-            _remove_folders(self._made)
+            remove_folders(self._made)
         self._made = []
 
     def _load(self) -> None:
@@ -237,12 +242,3 @@ def _read_results(path: Path) -> dict | None:
     header = data.get("header")
     legacy = "format" not in data and isinstance(header, dict) and {"runs", "trials"} <= set(header)
     return data if legacy and isinstance(data.get("results"), list) else None
-
-
-def _remove_folders(folders: Sequence[Path]) -> None:
-    """Remove the folders a failed start created (innermost first), each only if it is empty."""
-    for f in folders:
-        try:
-            f.rmdir()
-        except OSError:
-            return
