@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import os
 import stat
+import tokenize
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -58,6 +59,7 @@ _BROKEN = (
     NotImplementedError,
     RuntimeError,  # also RecursionError
     SyntaxError,
+    tokenize.TokenError,  # numpy tokenizes a header before it reads it as a literal
     UnicodeDecodeError,
     MemoryError,
 )
