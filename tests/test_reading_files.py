@@ -416,7 +416,7 @@ def mutated(meta: dict, path: str, value) -> dict:
         ),
         ("settings", 5, "settings is 5, not an object"),
         ("eval_rng_states.1.bit_generator", "MT19937", "eval_rng_states[1].bit_generator is 'MT19937', not 'PCG64'"),
-        ("rng_states.1", ..., "rng_states has 1 generator states, not one per run (2)"),
+        ("rng_states.1", ..., "rng_states has 1 generator state, not one per run (2)"),
         ("rng_states.0.uinteger", -1, "rng_states[0].uinteger is -1, not an integer from 0 to 4,294,967,295"),
         ("runs", "two", "runs is 'two', not an integer"),
         ("runs", 0, "runs is 0, not an integer of at least 1"),

@@ -56,12 +56,17 @@ class _Bad(Exception):
         super().__init__(f"{field} {why}")
 
 
+def _count(n: int, noun: str) -> str:
+    """``1 item``, ``2 items``."""
+    return f"{n:,} {noun}" + ("" if n == 1 else "s")
+
+
 def _shown(v: Any) -> str:
     """A value of ``meta`` as a message shows it: short, one line."""
     if isinstance(v, dict):
-        return f"an object of {len(v)} keys"
+        return f"an object of {_count(len(v), 'key')}"
     if isinstance(v, list):
-        return f"a list of {len(v)} items"
+        return f"a list of {_count(len(v), 'item')}"
     if isinstance(v, int) and not isinstance(v, bool) and abs(v) >= 10**30:
         return f"an integer of {len(str(abs(v)))} digits"
     text = repr(v)
@@ -157,7 +162,7 @@ def _rng_states(v: Any, field: str, runs: int) -> None:
     if not isinstance(v, list):
         raise _Bad(field, f"is {_shown(v)}, not a list")
     if len(v) != runs:
-        raise _Bad(field, f"has {len(v):,} generator states, not one per run ({runs:,})")
+        raise _Bad(field, f"has {_count(len(v), 'generator state')}, not one per run ({runs:,})")
     for i, s in enumerate(v):
         _rng_state(s, f"{field}[{i}]")
 
