@@ -89,6 +89,10 @@ class _LimitError(InputError):
     """A CSV trace past a limit: said at once, the rest of the file not read (nor checked for UTF-8)."""
 
 
+def _limit_message() -> str:
+    return f"the trace has more than {MAX_STEPS + 1:,} samples (rows), the most supported ({MAX_STEPS:,} time steps)"
+
+
 def _shown(name: str, width: int = 40) -> str:
     """A column's name as a message shows it: at most ``width`` characters."""
     return name if len(name) <= width else name[:width] + "..."
@@ -169,20 +173,24 @@ def _read_csv_arrow(path: str, needed: tuple[str, ...]) -> Trace | None:
                 ),
             )
             for batch in batches:
-                n += batch.num_rows
-                if n > MAX_STEPS + 1:  # the numpy reader says so, with the line
-                    return None
+                rows = min(batch.num_rows, MAX_STEPS + 1 - n)  # the rows within the sample limit
                 for name, i in reader.idx.items():
                     chunk = batch.column(i)  # a float64 buffer, read in place (to_numpy would load pandas)
                     if chunk.null_count or chunk.type != pa.float64():
                         return None
-                    k = len(chunk)
-                    values = np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=k, offset=8 * chunk.offset)
+                    values = np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=rows, offset=8 * chunk.offset)
                     if not np.isfinite(values).all():
                         return None
                     parts[name].append(values.copy())
+                n += rows
+                if rows < batch.num_rows:  # a sample past the limit, every one before it good: on its own line
+                    break
+            else:
+                batch = None
     except (pa.ArrowException, ValueError, OSError):
         return None
+    if batch is not None:  # as the numpy reader says it, the rest of the file unread
+        raise _LimitError(_limit_message(), file=path, line=line + 1 + n)
     columns = {name: np.concatenate(p) if p else np.empty(0) for name, p in parts.items()}
     del parts
     lines = SourceLines()
@@ -360,11 +368,7 @@ class _CsvReader:
     def limit(self, line: int) -> None:
         """Refuse the trace, its row on ``line`` one sample more than :data:`~mitlc.limits.MAX_STEPS`
         allows: the rest of the file is not read."""
-        raise _LimitError(
-            f"the trace has more than {MAX_STEPS + 1:,} samples (rows), the most supported ({MAX_STEPS:,} time steps)",
-            file=self.path,
-            line=line,
-        )
+        raise _LimitError(_limit_message(), file=self.path, line=line)
 
     def header(self, row: list[str], line: int) -> None:
         if len(row) > MAX_COLUMNS:
