@@ -556,6 +556,16 @@ def test_a_checkpoint_that_is_not_an_archive_is_one_line(trained, tmp_path):
     assert both_commands(folder) == "not a mitlc checkpoint: no 'meta' record"
 
 
+def test_a_metrics_json_nested_100k_deep_does_not_stop_a_resume(trained, tmp_path):
+    """train --resume reads the folder's metrics.json for the time trained so far; one that does not
+    parse (here 100k nested '[': RecursionError) is no record of it, not a traceback."""
+    folder = tmp_path / "p"
+    shutil.copytree(trained.parent, folder)
+    (folder / "metrics.json").write_text("[" * 100_000)
+    r = run("train", "--resume", str(folder), "--trials", "3", "-q", "--no-plots")
+    assert r.exit_code == 0 and r.output.startswith("2 runs x 3 trials in "), r.output
+
+
 @pytest.fixture(scope="module")
 def hyrl_ckpt(tmp_path_factory) -> Path:
     """The golden HyRL checkpoint (overshoot, 2 runs x 30 trials)."""

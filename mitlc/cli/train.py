@@ -415,7 +415,7 @@ def _wall_before(folder: Path) -> float:
 def _read_json(path: Path) -> dict:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # missing, not JSON, or nested past the parser's depth
         return {}
     return data if isinstance(data, dict) else {}
 
