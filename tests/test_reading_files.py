@@ -257,6 +257,31 @@ def test_a_fifo_trace_is_refused_not_waited_on(tmp_path, name):
     assert p.stderr.strip() == f"{fifo}: error: cannot read trace: not a regular file"
 
 
+@pytest.mark.parametrize(
+    "times, message",
+    [
+        ("-1e308,1e308", "the trace spans t = -1e+308 to 1e+308 s, longer than the longest supported, 1e+09 s"),
+        ("-1e308,0,1e308", "the trace spans t = -1e+308 to 1e+308 s, longer than the longest supported, 1e+09 s"),
+        ("0,1e300,2e300", "the trace spans t = 0 to 2e+300 s, longer than the longest supported, 1e+09 s"),
+    ],
+)
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_times_of_1e308_are_one_line_not_warnings(tmp_path, times, message, suffix):
+    """Was 10 lines of numpy RuntimeWarnings (overflow in subtract) before the error."""
+    t = np.array([float(x) for x in times.split(",")])
+    path = tmp_path / f"t{suffix}"
+    trace_mod.write_trace(path, t, {"q": 0 * t, "qdot": 0 * t})
+    assert error_line(run("check", S, str(path))) == f"{path}: error: {message}"
+
+
+def test_a_trace_in_epoch_seconds_reads(tmp_path):
+    """The span is limited, not the times: a trace stamped in Unix time (1.7e9 s) is read."""
+    path = tmp_path / "epoch.csv"
+    path.write_text("t,q,qdot\n" + "".join(f"{1.7e9 + k * DT!r},0,0\n" for k in range(50)))
+    r = run("check", S, str(path), "--json")
+    assert r.exit_code == 0 and json.loads(r.output)["dt"] == pytest.approx(DT, rel=1e-3)
+
+
 def wide_csv(path: Path, columns: int, rows: int = 5, duplicate: bool = False) -> Path:
     names = ["t", "q", "qdot", *(f"c{i}" for i in range(columns - 3))]
     if duplicate:

@@ -24,7 +24,7 @@ from typing import BinaryIO
 import numpy as np
 
 from mitlc.errors import InputError
-from mitlc.limits import MAX_COLUMNS, MAX_STEPS, MIN_DT, check_samples
+from mitlc.limits import MAX_COLUMNS, MAX_STEPS, MAX_TIME, MIN_DT, check_samples
 from mitlc.npzfile import NpzArchive, regular_file
 
 __all__ = ["Trace", "SourceLines", "read_trace", "write_trace", "UNIFORM_TOL", "CHUNK_BYTES"]
@@ -475,6 +475,13 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
         trace = _read_npz(path, needed, order)
     else:
         raise InputError(f"trace must be .csv or .npz, not '{suffix or Path(path).name}'", file=path)
+    with np.errstate(over="ignore", invalid="ignore"):  # times of +-1e308: said in words, not warnings
+        return trace, _time_step(trace, path)
+
+
+def _time_step(trace: Trace, path: str) -> float:
+    """The trace's time step, after checking that its times increase, span no more than
+    :data:`~mitlc.limits.MAX_TIME` and are uniform."""
     t = trace.t
     if len(t) < 2:
         raise InputError(f"a trace needs at least 2 samples to tell the time step, got {len(t)}", file=path)
@@ -484,8 +491,7 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
         steps = np.diff(t[a : a + _BLOCK + 1])
         if backwards is None and (steps <= 0).any():
             backwards = a + int(np.argmax(steps <= 0)) + 1
-        with np.errstate(over="ignore"):  # a step of 1e308 from -1e308 is uneven, not a warning
-            bad = np.abs(steps - step0) > UNIFORM_TOL * step0
+        bad = np.abs(steps - step0) > UNIFORM_TOL * step0  # a step of 1e308 from -1e308 is uneven
         if uneven is None and bad.any():
             uneven = a + int(np.argmax(bad)) + 1
         if backwards is not None:
@@ -493,6 +499,11 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
     if backwards is not None:
         k = backwards
         raise InputError(f"time must increase: t = {t[k]:g} after t = {t[k - 1]:g}", file=path, line=trace.line(k))
+    if not t[-1] - t[0] <= MAX_TIME:
+        raise InputError(
+            f"the trace spans t = {t[0]:g} to {t[-1]:g} s, longer than the longest supported, {MAX_TIME:g} s",
+            file=path,
+        )
     if uneven is not None:
         k = uneven
         raise InputError(
@@ -514,7 +525,7 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
                 file=path,
                 line=trace.line(k),
             )
-    return trace, dt
+    return dt
 
 
 _BLOCK = 1 << 20
