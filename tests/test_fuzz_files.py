@@ -77,12 +77,27 @@ def params_npz(tmp_path_factory) -> Path:
     return d / "p" / "params.npz"
 
 
+def _structure(data: bytes) -> list[int]:
+    """The offsets of the zip's record fields (local headers, central directory, its end: the methods,
+    flags, sizes, offsets) and of each ``.npy`` header: where one byte changes how the rest is read."""
+    spots: list[int] = []
+    for sig, size in ((b"PK\x03\x04", 30), (b"PK\x01\x02", 46), (b"PK\x05\x06", 22), (b"\x93NUMPY", 64)):
+        at = data.find(sig)
+        while at >= 0:
+            spots.extend(range(at, min(at + size, len(data))))
+            at = data.find(sig, at + 1)
+    return spots
+
+
 @st.composite
 def byte_damage(draw: st.DrawFn, data: bytes) -> bytes:
-    """``data`` with a few bytes flipped, overwritten, cut or inserted."""
+    """``data`` with a few bytes flipped, overwritten, cut or inserted: anywhere, or (half the time) in
+    the zip's and the ``.npy`` headers' fields."""
     out = bytearray(data)
+    spots = _structure(data)
     for _ in range(draw(st.integers(1, 4))):
-        i = draw(st.integers(0, len(out) - 1))
+        anywhere = st.integers(0, len(out) - 1)
+        i = draw(st.one_of(anywhere, st.sampled_from([j for j in spots if j < len(out)] or [0])))
         kind = draw(st.sampled_from(["flip", "set", "cut", "insert"]))
         if kind == "flip":
             out[i] ^= 1 << draw(st.integers(0, 7))
