@@ -456,6 +456,15 @@ def mutated(meta: dict, path: str, value) -> dict:
         ("diverged", [-1, 99], "diverged[1] is 99, not an integer from -1 to 2"),
         ("ramp_trials", -3, "ramp_trials is -3, not an integer from 0 to 1,000,000,000"),
         ("plant", "pendulum", "plant is 'pendulum', not a plant record"),
+        # the checkpoint against itself: its grid and its state, its spec text
+        ("settings.rbf", [10], "settings.rbf has 1 count, not one per state variable (q, qdot)"),
+        (
+            "settings.feature_bounds",
+            [["zz", -1, 1]],
+            "settings.feature_bounds[0][0] is 'zz', not a state variable (q, qdot)",
+        ),
+        ("spec_source", "", "spec_source, line 1: the spec has no 'formula' (nor any 'require')"),
+        ("spec_source", "plant pendulum\nformula F kapa\n", "spec_source, line 2: undefined proposition 'kapa'"),
     ],
 )
 def test_a_damaged_meta_field_is_one_line_naming_it(trained, tmp_path, field, value, message):

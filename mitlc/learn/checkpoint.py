@@ -20,15 +20,18 @@ import math
 import typing
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mitlc.errors import InputError, TrainingError
+from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.limits import MAX_CHECKPOINT_ARRAY_BYTES, MAX_FEATURES, MAX_META_CHARS, MAX_SPEC_BYTES
 from mitlc.npzfile import NpzArchive
 
-__all__ = ["read_checkpoint", "read_meta", "load_state", "damaged", "restore_plant", "KINDS"]
+if TYPE_CHECKING:
+    from mitlc.spec.model import Spec
+
+__all__ = ["read_checkpoint", "read_meta", "recorded_spec", "load_state", "damaged", "restore_plant", "KINDS"]
 
 KINDS = ("sacpn", "hyrl")
 """The learners a checkpoint may be of (``meta.kind``; none: ``sacpn``)."""
@@ -292,7 +295,25 @@ def _check_meta(meta: dict[str, Any]) -> str:
             for i, x in enumerate(d):
                 _int(x, f"diverged[{i}]", -1, trial)
     _settings(meta["settings"], kind)
+    if kind == "sacpn" and "state_names" in meta:
+        _grid_of(meta["settings"], meta["state_names"])
     return kind
+
+
+def _grid_of(settings: dict[str, Any], names: list[str]) -> None:
+    """A SACPN checkpoint's feature grid agrees with the state it was trained on (``state_names``):
+    one ``rbf`` count per variable, ``feature_bounds`` of its variables (or the default entries)."""
+    from mitlc.learn.sacpn import SacpnSettings
+
+    rbf = settings.get("rbf")
+    if rbf is not None and len(rbf) != len(names):
+        raise _Bad("settings.rbf", f"has {_count(len(rbf), 'count')}, not one per state variable ({', '.join(names)})")
+    defaults = {tuple(e) for e in SacpnSettings().feature_bounds}
+    for i, entry in enumerate(settings.get("feature_bounds", ())):
+        if entry[0] not in names and tuple(entry) not in defaults:
+            raise _Bad(
+                f"settings.feature_bounds[{i}][0]", f"is {_shown(entry[0])}, not a state variable ({', '.join(names)})"
+            )
 
 
 def _read_meta_record(archive: NpzArchive, where: str) -> dict[str, Any]:
@@ -370,6 +391,19 @@ def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, 
         arrays = _check_arrays(archive, meta, kind, where)
     arrays["meta"] = np.array(json.dumps(meta))
     return arrays, meta
+
+
+def recorded_spec(meta: dict[str, Any], path: str | Path) -> Spec:
+    """The spec the checkpoint at ``path`` was trained on: its ``spec_source``, parsed (named by its
+    ``spec_path``). The text is the checkpoint's, so an error in it is too: one line naming the
+    checkpoint, the field and the line (the file at ``spec_path`` may say something else today)."""
+    from mitlc.spec.parse import parse_spec
+
+    try:
+        return parse_spec(meta["spec_source"], meta["spec_path"] or None)
+    except MitlError as exc:
+        line = f", line {exc.line}" if exc.line is not None else ""
+        raise InputError(f"damaged checkpoint: spec_source{line}: {exc.message}", file=str(path)) from None
 
 
 def read_meta(path: str | Path) -> dict[str, Any]:

@@ -625,14 +625,13 @@ def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
 
     ``spec``: the checkpoint's spec when the caller has parsed it already (``mitlc train
     --resume`` has); used only if its text is the checkpoint's, else the text is parsed."""
-    from mitlc.learn.checkpoint import load_state, read_checkpoint
-    from mitlc.spec.parse import parse_spec
+    from mitlc.learn.checkpoint import load_state, read_checkpoint, recorded_spec
 
     data, meta = read_checkpoint(path)
     if meta.get("kind") != "hyrl":
         raise InputError("not a HyRL checkpoint", file=str(path))
     if spec is None or spec.source != meta["spec_source"]:
-        spec = parse_spec(meta["spec_source"], meta["spec_path"] or None)
+        spec = recorded_spec(meta, path)
     # checkpoints written before these settings existed were trained without them
     saved = {**_LEGACY_SETTINGS, **meta["settings"]}
     learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]), seed=int(meta["seed"]))
