@@ -15,14 +15,26 @@ __all__ = [
     "MAX_FEATURES",
     "MAX_LEARNER_BYTES",
     "MAX_DENSE_ENTRIES",
+    "MAX_COLUMNS",
+    "MAX_META_CHARS",
+    "MAX_CHECKPOINT_ARRAY_BYTES",
+    "MIN_RBF_WIDTH",
+    "MAX_RBF_WIDTH",
+    "MAX_MAGNITUDE",
+    "MIN_SPAN",
     "check_steps",
+    "check_samples",
 ]
 
 MAX_SPEC_BYTES = 1 << 20
 """A spec file is read up to 1 MiB (the shipped ones are under 2 KiB)."""
 
 MAX_STEPS = 1_000_000
-"""Samples in one trial (``horizon / dt``) or one trace's time step count."""
+"""Samples in one trial (``horizon / dt``) or one trace's time step count (a trace of
+``MAX_STEPS + 1`` samples, rows of a CSV or entries of an ``.npz`` array, at most)."""
+
+MAX_COLUMNS = 10_000
+"""Columns in a CSV trace's header (the state variables and any others, which are ignored)."""
 
 MIN_DT = 1e-9
 """The smallest sample time, in seconds (a trace's or a learner's)."""
@@ -35,6 +47,14 @@ MAX_FEATURES = 100_000
 
 MAX_LEARNER_BYTES = 4 << 30
 """Memory the learner's per-run arrays may take together (4 GiB)."""
+
+
+def check_samples(samples: int, what: str = "the trace") -> None:
+    """A ``ValueError`` when ``samples`` (of a trace) are more than :data:`MAX_STEPS` time steps."""
+    if samples > MAX_STEPS + 1:
+        raise ValueError(
+            f"{what} has {samples:,} samples, more than the {MAX_STEPS + 1:,} supported ({MAX_STEPS:,} time steps)"
+        )
 
 
 def check_steps(duration: float, dt: float, what: str) -> int:
@@ -54,3 +74,27 @@ def check_steps(duration: float, dt: float, what: str) -> int:
 MAX_DENSE_ENTRIES = 1 << 25
 """Entries (transitions x places) up to which a net's dense ``D-``, ``D+`` and ``D`` are built
 on request (256 MiB each as int64); a net keeps them sparse and refuses the dense view past it."""
+
+MAX_META_CHARS = 1 << 24
+"""Characters of a checkpoint's ``meta`` record (its JSON): 16 Mi, room for a spec at its
+limit (:data:`MAX_SPEC_BYTES`) and the random generators' states of some 50,000 runs."""
+
+MAX_CHECKPOINT_ARRAY_BYTES = MAX_LEARNER_BYTES // 4
+"""Bytes, unpacked, of one array of a checkpoint (``xi``, ``theta``, ``returns``): 1 GiB, the
+most a learner's actor may take (its four arrays share :data:`MAX_LEARNER_BYTES`)."""
+
+MIN_RBF_WIDTH = 0.02
+"""The narrowest RBF width (a multiple of the centre spacing): the nearest centre's exponent,
+``-1 / (8 w^2)``, stays above -313, so the features never all underflow to 0 (0 / 0)."""
+
+MAX_RBF_WIDTH = 1000.0
+"""The widest RBF width (a multiple of the centre spacing): flat features already; far wider
+overflows ``(width x spacing)^2``."""
+
+MAX_MAGNITUDE = 1e12
+"""The largest magnitude of a learner setting in the plant's units (an exploration ``sigma``, a
+feature grid's bounds): far above any plant's range, far below where products overflow."""
+
+MIN_SPAN = 1e-9
+"""The narrowest range of a feature grid (``hi - lo`` of a ``feature_bounds`` entry, HyRL's
+``qdot_grid``), in the plant's units: narrower, the centres' spacing squared underflows."""

@@ -293,6 +293,7 @@ def train(
     quiet,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
+    from mitlc.learn.checkpoint import recorded_spec
     from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
@@ -304,7 +305,7 @@ def train(
             raise InputError(f"no checkpoint {PARAMS} in {resume_dir}", file=str(resume_dir))
         meta = read_meta(ckpt)
         _restore_plant(meta, ckpt)
-        spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
+        spec = _load(spec_path) if spec_path is not None else recorded_spec(meta, ckpt)
         runs, seed = int(meta["runs"]), int(meta["seed"])
         conjunction = conjunction or meta.get("conjunction")
         violations = violations or meta.get("violations")
@@ -415,7 +416,7 @@ def _wall_before(folder: Path) -> float:
 def _read_json(path: Path) -> dict:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # missing, not JSON, or nested past the parser's depth
         return {}
     return data if isinstance(data, dict) else {}
 
@@ -583,6 +584,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
     'mitlc train' judged its success rate on. HyRL policies (classical criteria) are judged
     by the checker; several of them run composed on --spec's combined automaton (thesis
     section 3-3-3)."""
+    from mitlc.learn.checkpoint import recorded_spec
     from mitlc.learn.policy import load_sacpn
     from mitlc.learn.sacpn import read_meta
 
@@ -609,7 +611,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
     if len(policy_dirs) > 1:
         raise InputError("only HyRL policies (classical criteria) run composed; give one SACPN policy", file="--policy")
     _restore_plant(meta, ckpt)
-    spec = _load(spec_path, meta["spec_source"], meta["spec_path"] or None)
+    spec = _load(spec_path) if spec_path is not None else recorded_spec(meta, ckpt)
     agent = load_sacpn(ckpt, meta, spec)
     if starts == "train" and rollouts not in (None, agent.runs):
         raise InputError(

@@ -51,8 +51,8 @@ from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import atomic_write
 from mitlc.hybrid import HybridAutomaton, compile_requirements
 from mitlc.learn.features import Axis, RbfFeatures
-from mitlc.learn.settings import Settings, check_fraction, check_grid, check_non_negative, check_positive, json_default
-from mitlc.limits import check_steps
+from mitlc.learn.settings import Settings, check_fraction, check_grid, check_non_negative, check_range, json_default
+from mitlc.limits import MAX_MAGNITUDE, MAX_RBF_WIDTH, MAX_TIME, MIN_DT, MIN_RBF_WIDTH, MIN_SPAN, check_steps
 from mitlc.plants.base import Plant
 from mitlc.spec.model import Spec
 
@@ -180,17 +180,17 @@ class HyrlSettings(Settings):
         check_fraction(self, ("gamma", "lam"))
         if not 0.0 < self.sigma_decay <= 1.0:
             raise TrainingError(f"sigma_decay must be in (0, 1], got {self.sigma_decay}")
-        check_non_negative(self, ("alpha_c", "alpha_a", "sigma", "sigma_min", "noise_tau"))
-        check_positive(self, ("rbf_width",))
+        check_non_negative(self, ("alpha_c", "alpha_a"))
+        check_range(self, ("sigma", "sigma_min"), 0.0, MAX_MAGNITUDE)
+        check_range(self, ("noise_tau",), 0.0, MAX_TIME)
+        check_range(self, ("rbf_width",), MIN_RBF_WIDTH, MAX_RBF_WIDTH)
         if len(self.rbf) != 3 or any(int(n) < 1 for n in self.rbf) or self.rbf_clock < 1:
             raise TrainingError(f"rbf needs three positive counts (q, qdot, q0) and rbf_clock >= 1, got {self.rbf}")
         check_grid((*self.rbf, self.rbf_clock))
         if self.q_warp is not None and not (math.isfinite(self.q_warp) and 0.0 < self.q_warp <= 1.0):
             raise TrainingError(f"q_warp must be in (0, 1], got {self.q_warp}")
-        for name in ("trial_s", "dt", "qdot_grid"):
-            v = getattr(self, name)
-            if v is not None and not (math.isfinite(v) and v > 0):
-                raise TrainingError(f"{name} must be positive, got {v}")
+        check_range(self, ("trial_s", "dt"), MIN_DT, MAX_TIME, optional=True)
+        check_range(self, ("qdot_grid",), MIN_SPAN, MAX_MAGNITUDE, optional=True)
 
 
 # ---------------------------------------------------------------- features
@@ -478,6 +478,7 @@ class HybridLearner:
                 runs = ", ".join(str(int(i)) for i in np.flatnonzero(bad)[:10])
                 raise TrainingError(
                     f"the {name} diverged (NaN or inf) in trial {self.trial + 1}, run(s) {runs}",
+                    file=self.spec.path,
                     hint="lower the learning rates (alpha_a, alpha_c) or the exploration sigma",
                 )
 
@@ -624,14 +625,13 @@ def load_learner(path: str | Path, spec: Spec | None = None) -> HybridLearner:
 
     ``spec``: the checkpoint's spec when the caller has parsed it already (``mitlc train
     --resume`` has); used only if its text is the checkpoint's, else the text is parsed."""
-    from mitlc.learn.checkpoint import load_state, read_checkpoint
-    from mitlc.spec.parse import parse_spec
+    from mitlc.learn.checkpoint import load_state, read_checkpoint, recorded_spec
 
     data, meta = read_checkpoint(path)
     if meta.get("kind") != "hyrl":
         raise InputError("not a HyRL checkpoint", file=str(path))
     if spec is None or spec.source != meta["spec_source"]:
-        spec = parse_spec(meta["spec_source"], meta["spec_path"] or None)
+        spec = recorded_spec(meta, path)
     # checkpoints written before these settings existed were trained without them
     saved = {**_LEGACY_SETTINGS, **meta["settings"]}
     learner = HybridLearner(spec, HyrlSettings.from_dict(saved), runs=int(meta["runs"]), seed=int(meta["seed"]))

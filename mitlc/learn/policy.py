@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.errors import InputError
-from mitlc.learn.checkpoint import damaged, read_meta, restore_plant
+from mitlc.learn.checkpoint import damaged, read_meta, recorded_spec, restore_plant
 from mitlc.spec.model import Spec
 
 __all__ = ["Policy", "SacpnPolicy", "HyrlPolicy", "load_policy", "load_sacpn", "PARAMS"]
@@ -121,10 +121,9 @@ def load_sacpn(ckpt: str | Path, meta: dict[str, Any], spec: Spec | None = None)
     the options it was trained with, on ``spec`` (default: the spec it was trained on)."""
     from mitlc.learn.sacpn import Sacpn, SacpnSettings
     from mitlc.petri.compile import CompileOptions, compile_spec
-    from mitlc.spec.parse import parse_spec
 
     if spec is None:
-        spec = parse_spec(meta["spec_source"], meta.get("spec_path") or None)
+        spec = recorded_spec(meta, ckpt)
     options = CompileOptions.from_spec(
         spec,
         conjunction=meta.get("conjunction"),

@@ -51,7 +51,6 @@ the reasons):
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -70,14 +69,26 @@ from mitlc.learn.settings import (
     check_fraction,
     check_grid,
     check_non_negative,
-    check_positive,
+    check_range,
     json_default,
 )
-from mitlc.limits import MAX_LEARNER_BYTES, check_steps
+from mitlc.limits import (
+    MAX_LEARNER_BYTES,
+    MAX_MAGNITUDE,
+    MAX_RBF_WIDTH,
+    MAX_TIME,
+    MIN_DT,
+    MIN_RBF_WIDTH,
+    MIN_SPAN,
+    check_steps,
+)
 from mitlc.petri.compile import RewardSystem
 from mitlc.plants.base import Plant
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
+
+MAX_SIGMA_FRAC = 1000.0
+"""The largest ``sigma_frac``: exploration a thousand times the input bound is saturated already."""
 
 _KERNELS: dict[tuple, Callable] = {}
 """Fused trial kernels compiled in this process, per (jit, plant step, predicates): a
@@ -196,8 +207,9 @@ class SacpnSettings(Settings):
         if self.violation_value not in ("known", "learned"):
             raise TrainingError(f"unknown violation_value '{self.violation_value}' (known or learned)")
         check_fraction(self, ("gamma", "lam", "penalty_ramp"))
-        check_non_negative(self, ("alpha_c", "alpha_a", "sigma_frac"))
-        check_positive(self, ("rbf_width",))
+        check_non_negative(self, ("alpha_c", "alpha_a"))
+        check_range(self, ("sigma_frac",), 0.0, MAX_SIGMA_FRAC)
+        check_range(self, ("rbf_width",), MIN_RBF_WIDTH, MAX_RBF_WIDTH)
         if self.rbf is not None:
             check_grid(self.rbf)
         seen = set()
@@ -205,17 +217,16 @@ class SacpnSettings(Settings):
             if len(entry) != 3:
                 raise TrainingError(f"feature_bounds entries are (name, lo, hi), got {entry!r}")
             name, lo, hi = entry
-            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-                raise TrainingError(f"feature_bounds of '{name}' must be finite with lo < hi, got [{lo:g}, {hi:g}]")
+            if not (-MAX_MAGNITUDE <= lo < hi <= MAX_MAGNITUDE and hi - lo >= MIN_SPAN):
+                raise TrainingError(
+                    f"feature_bounds of '{name}' must lie in [{-MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}] with lo < hi, "
+                    f"at least {MIN_SPAN:g} apart, got [{lo:g}, {hi:g}]"
+                )
             if name in seen:
                 raise TrainingError(f"feature_bounds gives '{name}' twice")
             seen.add(name)
-        if self.sigma is not None and not (math.isfinite(self.sigma) and self.sigma >= 0):
-            raise TrainingError(f"sigma must be a non-negative number, got {self.sigma}")
-        for name in ("trial_s", "dt"):
-            v = getattr(self, name)
-            if v is not None and not (math.isfinite(v) and v > 0):
-                raise TrainingError(f"{name} must be positive, got {v}")
+        check_range(self, ("sigma",), 0.0, MAX_MAGNITUDE, optional=True)
+        check_range(self, ("trial_s", "dt"), MIN_DT, MAX_TIME, optional=True)
 
 
 # ---------------------------------------------------------------- the learner
@@ -324,6 +335,12 @@ class Sacpn:
         self.dt = float(self.params["dt"])
         self.u_max = float(self.params["u_max"])
         self.sigma = float(settings.sigma) if settings.sigma is not None else settings.sigma_frac * self.u_max
+        if not self.sigma <= MAX_MAGNITUDE:  # sigma_frac x a huge u_max: the noise would overflow
+            raise TrainingError(
+                f"sigma_frac {settings.sigma_frac:g} x u_max {self.u_max:g} is an exploration sigma of "
+                f"{self.sigma:g}, more than the {MAX_MAGNITUDE:g} supported",
+                hint="give sigma itself (--sigma)",
+            )
         horizon = settings.trial_s if settings.trial_s is not None else (spec.horizon or 3.0)
         self.trial_s = float(horizon)
         try:

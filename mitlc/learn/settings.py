@@ -30,6 +30,9 @@ __all__ = [
     "from_dict",
     "check_fraction",
     "check_non_negative",
+    "check_positive",
+    "check_range",
+    "check_grid",
     "json_default",
     "parse_finite",
     "parser_for",
@@ -97,6 +100,17 @@ def check_positive(settings: Any, names: Iterable[str]) -> None:
         v = getattr(settings, name)
         if not (math.isfinite(v) and v > 0):
             raise TrainingError(f"{name} must be a positive number, got {v}")
+
+
+def check_range(settings: Any, names: Iterable[str], lo: float, hi: float, optional: bool = False) -> None:
+    """Each named setting is a number in ``[lo, hi]`` (or None, when ``optional``): values past the
+    range would overflow or underflow where the learner uses them."""
+    for name in names:
+        v = getattr(settings, name)
+        if optional and v is None:
+            continue
+        if not (isinstance(v, int | float) and lo <= v <= hi):
+            raise TrainingError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v}")
 
 
 def check_grid(counts: Iterable[int], name: str = "rbf") -> None:

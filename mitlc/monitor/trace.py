@@ -16,7 +16,6 @@ import io
 import math
 import os
 import warnings
-import zipfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from types import ModuleType
@@ -25,7 +24,8 @@ from typing import BinaryIO
 import numpy as np
 
 from mitlc.errors import InputError
-from mitlc.limits import MIN_DT
+from mitlc.limits import MAX_COLUMNS, MAX_STEPS, MAX_TIME, MIN_DT, check_samples
+from mitlc.npzfile import NpzArchive, regular_file
 
 __all__ = ["Trace", "SourceLines", "read_trace", "write_trace", "UNIFORM_TOL", "CHUNK_BYTES"]
 
@@ -85,6 +85,19 @@ _NUMERIC = b"0123456789.eE+-, \t\n"
 _NOT_UTF8 = "cannot read trace: not UTF-8 text"
 
 
+class _LimitError(InputError):
+    """A CSV trace past a limit: said at once, the rest of the file not read (nor checked for UTF-8)."""
+
+
+def _limit_message() -> str:
+    return f"the trace has more than {MAX_STEPS + 1:,} samples (rows), the most supported ({MAX_STEPS:,} time steps)"
+
+
+def _shown(name: str, width: int = 40) -> str:
+    """A column's name as a message shows it: at most ``width`` characters."""
+    return name if len(name) <= width else name[:width] + "..."
+
+
 READER_ENV = "MITLC_CSV_READER"
 """``MITLC_CSV_READER=numpy`` reads CSV traces with the numpy reader even where pyarrow is installed."""
 
@@ -111,7 +124,7 @@ def _pyarrow() -> tuple[ModuleType, ModuleType] | None:
 
 
 def _read_csv_arrow(path: str, needed: tuple[str, ...]) -> Trace | None:
-    """pyarrow's multi-threaded CSV reader (correctly rounded floats, as Python's ``float``), or None.
+    """pyarrow's streaming CSV reader (correctly rounded floats, as Python's ``float``), or None.
 
     It is used only where it cannot differ from the numpy reader: the header (found and checked
     as the numpy reader does) is one plain line ending in LF or CRLF, and pyarrow is told to read
@@ -119,8 +132,9 @@ def _read_csv_arrow(path: str, needed: tuple[str, ...]) -> Trace | None:
     file it reads so holds only float literals and LF, CR or CRLF line ends, so sample k is on
     the k-th line after the header and every value is the one ``float`` gives. Anything else
     (a cell that is not a float literal, ``1_0``, a quote, a blank or ragged line, a value that
-    is not finite, a missing column, no data: any doubt) returns None, and the numpy reader reads
-    the file or says, as ever, what is wrong and on which line.
+    is not finite, a missing column, no data, more samples than the limit: any doubt) returns
+    None, and the numpy reader reads the file or says, as ever, what is wrong and on which line.
+    Only the columns needed are kept, block by block.
     """
     mods = _pyarrow()
     if mods is None:
@@ -138,10 +152,12 @@ def _read_csv_arrow(path: str, needed: tuple[str, ...]) -> Trace | None:
     if head[offset : offset + len(codecs.BOM_UTF8)] == codecs.BOM_UTF8:  # pyarrow would drop a BOM here
         return None
     temp = [f"c{i}" for i in range(len(reader.names))]  # the names are unique, but not every string is a name
+    parts: dict[str, list[np.ndarray]] = {name: [] for name in reader.idx}
+    n = 0
     try:
         with pa.OSFile(path) as source:
             source.seek(offset)
-            table = pcsv.read_csv(
+            batches = pcsv.open_csv(  # streamed: a trace past the sample limit is not read to its end
                 source,
                 read_options=pcsv.ReadOptions(column_names=temp, block_size=_ARROW_BLOCK),
                 parse_options=pcsv.ParseOptions(
@@ -156,29 +172,27 @@ def _read_csv_arrow(path: str, needed: tuple[str, ...]) -> Trace | None:
                     quoted_strings_can_be_null=False,
                 ),
             )
+            for batch in batches:
+                rows = min(batch.num_rows, MAX_STEPS + 1 - n)  # the rows within the sample limit
+                for name, i in reader.idx.items():
+                    chunk = batch.column(i)  # a float64 buffer, read in place (to_numpy would load pandas)
+                    if chunk.null_count or chunk.type != pa.float64():
+                        return None
+                    values = np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=rows, offset=8 * chunk.offset)
+                    if not np.isfinite(values).all():
+                        return None
+                    parts[name].append(values.copy())
+                n += rows
+                if rows < batch.num_rows:  # a sample past the limit, every one before it good: on its own line
+                    break
+            else:
+                batch = None
     except (pa.ArrowException, ValueError, OSError):
         return None
-    n = table.num_rows
-    pool = pa.default_memory_pool()
-    keep = {temp[i] for i in reader.idx.values()}
-    table = table.drop_columns([c for c in temp if c not in keep])
-    columns: dict[str, np.ndarray] = {}
-    for name, i in reader.idx.items():
-        column = np.empty(n)
-        at = 0
-        for chunk in table.column(temp[i]).chunks:  # float64 buffers, read in place (to_numpy would load pandas)
-            if chunk.null_count or chunk.type != pa.float64():
-                return None
-            k = len(chunk)
-            column[at : at + k] = np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=k, offset=8 * chunk.offset)
-            at += k
-        if at != n or not np.isfinite(column).all():
-            return None
-        columns[name] = column
-        table = table.drop_columns([temp[i]])  # each column freed once copied, and handed back to the
-        pool.release_unused()  # system (the pool keeps what it frees): one column's copy at a time
-    del table
-    pool.release_unused()
+    if batch is not None:  # as the numpy reader says it, the rest of the file unread
+        raise _LimitError(_limit_message(), file=path, line=line + 1 + n)
+    columns = {name: np.concatenate(p) if p else np.empty(0) for name, p in parts.items()}
+    del parts
     lines = SourceLines()
     lines.add(n, line + 1)
     t = columns.pop("t")
@@ -228,6 +242,8 @@ def _read_csv_numpy(path: str, needed: tuple[str, ...]) -> Trace:
         with open(path, "rb") as fh:
             try:
                 return _CsvReader(path, fh, needed).read()
+            except _LimitError:
+                raise
             except InputError:
                 if not _utf8(fh):  # the whole file is decoded first, as text: not UTF-8 comes before a bad row
                     raise InputError(_NOT_UTF8, file=path) from None
@@ -310,6 +326,9 @@ class _CsvReader:
         a = a[:, list(self.idx.values())]
         if not np.isfinite(a).all():
             return self.slow(chunk, line)
+        before = len(self.lines)
+        if before + count > MAX_STEPS + 1:
+            self.limit(line + MAX_STEPS + 1 - before)  # the rows are on consecutive lines
         self.parts.append(a)
         self.lines.add(count, line)
         return line + count
@@ -337,6 +356,8 @@ class _CsvReader:
                     )
                 values.append([self.number(row[i], name, n) for name, i in self.idx.items()])
                 where.append(n)
+                if len(self.lines) + len(where) > MAX_STEPS + 1:
+                    self.limit(n)
         except csv.Error as exc:
             raise InputError(f"cannot read trace: {exc}", file=self.path, line=n + 1) from None
         if values:
@@ -344,18 +365,31 @@ class _CsvReader:
             self.lines.add(len(where), np.array(where, dtype=np.int64))
         return n + 1
 
+    def limit(self, line: int) -> None:
+        """Refuse the trace, its row on ``line`` one sample more than :data:`~mitlc.limits.MAX_STEPS`
+        allows: the rest of the file is not read."""
+        raise _LimitError(_limit_message(), file=self.path, line=line)
+
     def header(self, row: list[str], line: int) -> None:
+        if len(row) > MAX_COLUMNS:
+            raise _LimitError(
+                f"the header has {len(row):,} columns, more than the {MAX_COLUMNS:,} supported",
+                file=self.path,
+                line=line,
+            )
         names = [h.strip() for h in row]
+        index: dict[str, int] = {}
         for i, name in enumerate(names):
-            if name in names[:i]:
-                raise InputError(f"duplicate column '{name}'", file=self.path, line=line)
+            if index.setdefault(name, i) != i:
+                raise InputError(f"duplicate column '{_shown(name)}'", file=self.path, line=line)
         for want in ("t",) + self.needed:
-            if want not in names:
-                raise InputError(
-                    f"missing column '{want}'", file=self.path, line=line, hint=f"columns: {', '.join(names)}"
+            if want not in index:
+                shown = ", ".join(_shown(n) for n in names[:20]) + (
+                    f", ... ({len(names):,} in all)" if len(names) > 20 else ""
                 )
+                raise InputError(f"missing column '{want}'", file=self.path, line=line, hint=f"columns: {shown}")
         self.names = names
-        self.idx = {name: names.index(name) for name in ("t",) + self.needed}
+        self.idx = {name: index[name] for name in ("t",) + self.needed}
 
     def number(self, cell: str, name: str, line: int) -> float:
         cell = cell.strip()
@@ -368,70 +402,86 @@ class _CsvReader:
         return value
 
 
+_REAL = "fiu"
+"""The dtype kinds of a trace's arrays: real numbers (float, signed and unsigned integers)."""
+
+
 def _read_npz(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> Trace:
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except OSError as exc:
-        raise InputError(f"cannot read trace: {exc.strerror or exc}", file=path) from None
-    except (ValueError, zipfile.BadZipFile, EOFError):
-        raise InputError("cannot read trace: not a .npz archive", file=path) from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise InputError("cannot read trace: a single .npy array, not a .npz archive", file=path)
-    with archive:
-        names = list(archive.files)
-        if "t" not in names:
+    """The arrays ``t`` and ``needed`` (or ``x``) of an ``.npz`` trace, each header checked (shape,
+    dtype, the sample limit) before its data is read; other arrays are not read."""
+    with NpzArchive(path, "trace") as archive:
+        names = archive.names
+        if "t" not in archive:
             raise InputError("missing array 't'", file=path, hint=f"arrays: {', '.join(names) or 'none'}")
+        t = archive.header("t")
+        if len(t.shape) != 1:
+            raise InputError(f"array 't' has shape {t.shape}, expected (N+1,)", file=path)
         try:
-            arrays = {name: np.asarray(archive[name]) for name in names}
-        except (ValueError, OSError, zipfile.BadZipFile):
-            raise InputError("cannot read trace: damaged .npz archive", file=path) from None
-    t = arrays["t"]
-    if t.ndim != 1:
-        raise InputError(f"array 't' has shape {t.shape}, expected (N+1,)", file=path)
-    columns: dict[str, np.ndarray] = {}
-    if all(n in arrays for n in needed) and needed:
-        for n in needed:
-            columns[n] = arrays[n]
-    elif "x" in arrays:
-        x = arrays["x"]
-        if x.ndim != 2 or x.shape[1] != len(order):
+            check_samples(t.shape[0])
+        except ValueError as exc:
+            raise InputError(str(exc), file=path) from None
+        members = {"t": t}
+        if not needed:
+            pass
+        elif all(n in archive for n in needed):
+            members.update({n: archive.header(n) for n in needed})
+        elif "x" in archive:
+            x = archive.header("x")
+            if len(x.shape) != 2 or x.shape[1] != len(order):
+                raise InputError(
+                    f"array 'x' has shape {x.shape}, expected (N+1, {len(order)}) with columns {', '.join(order)}",
+                    file=path,
+                )
+            if x.shape[0] != t.shape[0]:
+                raise InputError(f"array 'x' has {x.shape[0]} samples, 't' has {t.shape[0]}", file=path)
+            members["x"] = x
+        else:
+            missing = next(n for n in needed if n not in archive)
             raise InputError(
-                f"array 'x' has shape {x.shape}, expected (N+1, {len(order)}) with columns {', '.join(order)}",
+                f"missing array '{missing}' (or 'x' with columns {', '.join(order)})",
                 file=path,
+                hint=f"arrays: {', '.join(names)}",
             )
-        columns = {n: x[:, order.index(n)] for n in needed}
-    else:
-        missing = next(n for n in needed if n not in arrays)
-        raise InputError(
-            f"missing array '{missing}' (or 'x' with columns {', '.join(order)})",
-            file=path,
-            hint=f"arrays: {', '.join(names)}",
-        )
-    for name, a in [("t", t)] + list(columns.items()):
-        if not np.issubdtype(a.dtype, np.number) or a.dtype.kind == "c":
-            raise InputError(f"array '{name}' does not hold real numbers ({a.dtype})", file=path)
-        if a.shape != t.shape:
-            raise InputError(
-                f"array '{name}' has {a.shape[0] if a.ndim else 0} samples, 't' has {t.shape[0]}", file=path
-            )
+        for name, m in members.items():
+            if m.dtype.kind not in _REAL:
+                raise InputError(f"array '{name}' does not hold real numbers ({m.dtype})", file=path)
+            if name != "x" and m.shape != t.shape:
+                raise InputError(
+                    f"array '{name}' has {m.shape[0] if m.shape else 0} samples, 't' has {t.shape[0]}", file=path
+                )
+        arrays = {name: archive.read(name, m.nbytes) for name, m in members.items()}
+    t_values = arrays.pop("t")
+    if "x" in arrays:
+        x_values = arrays.pop("x")
+        arrays = {n: x_values[:, order.index(n)] for n in needed}
+    for name, a in [("t", t_values), *arrays.items()]:
         bad = ~np.isfinite(a.astype(float))
         if bad.any():
             k = int(np.argmax(bad))
             raise InputError(
                 f"array '{name}' holds a value that is not a finite number at sample {k}: {a[k]}", file=path
             )
-    return Trace(path, t.astype(float), {n: a.astype(float) for n, a in columns.items()})
+    return Trace(path, t_values.astype(float), {n: a.astype(float) for n, a in arrays.items()})
 
 
 def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tuple[Trace, float]:
     """Load ``path`` (.csv or .npz) and check its time column; return it and the time step."""
     suffix = Path(path).suffix.lower()
+    if suffix in (".csv", ".npz"):
+        regular_file(path, "trace")  # a FIFO would block forever, a device never end
     if suffix == ".csv":
         trace = _read_csv(path, needed)
     elif suffix == ".npz":
         trace = _read_npz(path, needed, order)
     else:
         raise InputError(f"trace must be .csv or .npz, not '{suffix or Path(path).name}'", file=path)
+    with np.errstate(over="ignore", invalid="ignore"):  # times of +-1e308: said in words, not warnings
+        return trace, _time_step(trace, path)
+
+
+def _time_step(trace: Trace, path: str) -> float:
+    """The trace's time step, after checking that its times increase, span no more than
+    :data:`~mitlc.limits.MAX_TIME` and are uniform."""
     t = trace.t
     if len(t) < 2:
         raise InputError(f"a trace needs at least 2 samples to tell the time step, got {len(t)}", file=path)
@@ -441,8 +491,7 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
         steps = np.diff(t[a : a + _BLOCK + 1])
         if backwards is None and (steps <= 0).any():
             backwards = a + int(np.argmax(steps <= 0)) + 1
-        with np.errstate(over="ignore"):  # a step of 1e308 from -1e308 is uneven, not a warning
-            bad = np.abs(steps - step0) > UNIFORM_TOL * step0
+        bad = np.abs(steps - step0) > UNIFORM_TOL * step0  # a step of 1e308 from -1e308 is uneven
         if uneven is None and bad.any():
             uneven = a + int(np.argmax(bad)) + 1
         if backwards is not None:
@@ -450,6 +499,11 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
     if backwards is not None:
         k = backwards
         raise InputError(f"time must increase: t = {t[k]:g} after t = {t[k - 1]:g}", file=path, line=trace.line(k))
+    if not t[-1] - t[0] <= MAX_TIME:
+        raise InputError(
+            f"the trace spans t = {t[0]:g} to {t[-1]:g} s, longer than the longest supported, {MAX_TIME:g} s",
+            file=path,
+        )
     if uneven is not None:
         k = uneven
         raise InputError(
@@ -471,7 +525,7 @@ def read_trace(path: str, needed: tuple[str, ...], order: tuple[str, ...]) -> tu
                 file=path,
                 line=trace.line(k),
             )
-    return trace, dt
+    return dt
 
 
 _BLOCK = 1 << 20
