@@ -10,8 +10,8 @@ mode (:mod:`mitlc.learn.hyrl`, judged and composed by :mod:`mitlc.learn.hyrl_eva
 :mod:`mitlc.learn.plots` draws what they produce.
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.cachefiles`,
-:mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.hybrid` (never the monitor: the
-learners are judged by it, from a later stage).
+:mod:`mitlc.npzfile`, :mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.hybrid` (never
+the monitor: the learners are judged by it, from a later stage).
 """
 
 from mitlc.learn.features import Axis, RbfFeatures

@@ -9,8 +9,8 @@ the standard finite-trace MITL semantics (docs/monitor.md), and where a trace fa
 the array kernels of :mod:`~mitlc.monitor.kernels`; :mod:`~mitlc.monitor.trace` reads
 recorded traces from files.
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
-:mod:`mitlc.spec`.
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.npzfile`
+(trace .npz files), :mod:`mitlc.plants`, :mod:`mitlc.spec`.
 """
 
 from mitlc.monitor.offline import (
