@@ -171,23 +171,25 @@ def test_no_path_passes_a_module_id_to_gymnasium(env_id: str, says: str) -> None
 
 
 def _checkpoint(folder: Path, spec_source: str, plant: dict | None = None) -> Path:
-    """A hand-made params.npz whose meta carries ``spec_source`` (and ``plant``)."""
+    """A real one-run checkpoint of a one-variable spec whose meta is then made to carry
+    ``spec_source`` (and ``plant``): everything else about it is whole."""
+    from mitlc.learn.sacpn import Sacpn
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import parse_spec
+
     folder.mkdir()
-    meta = {
-        "kind": "sacpn",
-        "runs": 1,
-        "seed": 0,
-        "trial": 1,
-        "settings": {},
-        "rng_states": [],
-        "eval_rng_states": [],
-        "spec_source": spec_source,
-        "spec_path": "g.mitl",
-    }
+    spec = parse_spec("plant mass-damper\ninit q = 0.5, qdot = 0\nhorizon 0.3\nprop a = q < 1\nformula F a\n")
+    agent = Sacpn(compile_spec(spec), runs=1, seed=0)
+    agent.train(1)
+    agent.save(folder / "params.npz")
+    with np.load(folder / "params.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    meta = json.loads(str(arrays["meta"]))
+    meta.update(spec_source=spec_source, spec_path="g.mitl")
     if plant is not None:
         meta["plant"] = plant
-    z = np.zeros(1)
-    np.savez(folder / "params.npz", xi=z, theta=z, returns=z, meta=np.array(json.dumps(meta)))
+    arrays["meta"] = np.array(json.dumps(meta))
+    np.savez(folder / "params.npz", **arrays)
     return folder
 
 
@@ -201,7 +203,8 @@ def test_a_checkpoint_spec_never_imports(tmp_path: Path) -> None:
         assert not marker.exists(), args
         errors = _error_lines(r.stderr)
         assert len(errors) == 1 and errors[0].startswith(
-            "g.mitl:1:7: error: 'gym:evilmod:Foo-v0' would import the module 'evilmod'"
+            "ck/params.npz: error: damaged checkpoint: spec_source, line 1: 'gym:evilmod:Foo-v0' would import "
+            "the module 'evilmod'"
         ), (args, r.stderr)
         assert "Traceback" not in r.stderr
 
