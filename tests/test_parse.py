@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -209,8 +210,9 @@ def test_fuzz_arbitrary_text(text: str) -> None:
 
 
 def _located_in(err: MitlError, text: str) -> None:
-    """An error's line and column lie in the text (the column may be one past a line's end)."""
-    lines = text.split("\n")
+    """An error's line and column lie in the text (the column may be one past a line's end); a lone
+    carriage return ends a line as a line feed does (old Mac line ends)."""
+    lines = re.sub(r"\r(?!\n)", "\n", text).split("\n")
     if err.line is not None:
         assert 1 <= err.line <= len(lines), (err.line, len(lines))
         if err.column is not None:
