@@ -473,6 +473,16 @@ def test_a_damaged_meta_field_is_one_line_naming_it(trained, tmp_path, field, va
     assert both_commands(folder) == f"damaged checkpoint: {message}"
 
 
+def test_a_grid_that_does_not_fit_the_spec_is_one_line_without_state_names(trained, tmp_path):
+    """A checkpoint from before state_names was recorded is checked against its spec's plant
+    (the fuzz family found a one-count grid labelled with the spec's path, not the checkpoint)."""
+    _, meta = arrays_of(trained)
+    del meta["state_names"]
+    meta["settings"]["rbf"] = [1]
+    folder = policy(tmp_path, with_meta(trained, meta))
+    assert both_commands(folder) == "damaged checkpoint: settings.rbf has 1 count, not one per state variable (q, qdot)"
+
+
 def test_meta_nested_100k_deep_is_one_line(trained, tmp_path):
     """Was RecursionError."""
     folder = policy(tmp_path, with_meta(trained, text="[" * 100_000))

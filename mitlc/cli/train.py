@@ -293,7 +293,7 @@ def train(
     quiet,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
-    from mitlc.learn.checkpoint import recorded_spec
+    from mitlc.learn.checkpoint import check_against, recorded_spec
     from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
@@ -306,6 +306,7 @@ def train(
         meta = read_meta(ckpt)
         _restore_plant(meta, ckpt)
         spec = _load(spec_path) if spec_path is not None else recorded_spec(meta, ckpt)
+        check_against(meta, spec, ckpt)
         runs, seed = int(meta["runs"]), int(meta["seed"])
         conjunction = conjunction or meta.get("conjunction")
         violations = violations or meta.get("violations")

@@ -393,6 +393,26 @@ def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, 
     return arrays, meta
 
 
+def check_against(meta: dict[str, Any], spec: Spec, path: str | Path) -> None:
+    """A SACPN checkpoint's feature grid fits the plant of ``spec``, the spec it is loaded with: one
+    line naming the checkpoint and the field when not (a checkpoint from before ``state_names`` was
+    recorded is checked here rather than against itself)."""
+    plant = spec.plant
+    if meta.get("kind", "sacpn") != "sacpn" or plant is None:
+        return
+    names, recorded = list(plant.state_names), meta.get("state_names")
+    if recorded is not None and len(recorded) != len(names):  # a whole checkpoint, another plant's spec
+        raise InputError(
+            f"the policy was trained on the state ({', '.join(recorded)}); the spec's plant "
+            f"'{plant.name}' has ({', '.join(names)})",
+            file=str(path),
+        )
+    try:
+        _grid_of(meta["settings"], names)
+    except _Bad as exc:
+        raise InputError(f"damaged checkpoint: {exc}", file=str(path)) from None
+
+
 def recorded_spec(meta: dict[str, Any], path: str | Path) -> Spec:
     """The spec the checkpoint at ``path`` was trained on: its ``spec_source``, parsed (named by its
     ``spec_path``). The text is the checkpoint's, so an error in it is too: one line naming the

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.errors import InputError
-from mitlc.learn.checkpoint import damaged, read_meta, recorded_spec, restore_plant
+from mitlc.learn.checkpoint import check_against, damaged, read_meta, recorded_spec, restore_plant
 from mitlc.spec.model import Spec
 
 __all__ = ["Policy", "SacpnPolicy", "HyrlPolicy", "load_policy", "load_sacpn", "PARAMS"]
@@ -124,6 +124,7 @@ def load_sacpn(ckpt: str | Path, meta: dict[str, Any], spec: Spec | None = None)
 
     if spec is None:
         spec = recorded_spec(meta, ckpt)
+    check_against(meta, spec, ckpt)
     options = CompileOptions.from_spec(
         spec,
         conjunction=meta.get("conjunction"),
