@@ -21,6 +21,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent
 
+# One OpenMP thread for PyTorch (the SB3 tests) and BLAS, in this process and those the tests start:
+# the networks are small, and on a 2-core machine with anything else running PyTorch's spinning
+# threads made docs/python.md's SB3 examples take 99 s instead of 9 s (measured while another test
+# process ran). This file is read before any test or doctest module imports torch.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
 # module file (relative to the root) -> (the importable it needs, the extra that brings it)
 OPTIONAL_MODULES = {
     "mitlc/crm.py": ("stable_baselines3", "sb3"),
