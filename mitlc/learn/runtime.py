@@ -310,6 +310,11 @@ class NetRuntime:
         preds = self._fast_preds
         if not preds:
             return np.zeros(np.shape(x)[0], dtype=np.int64)
+        with np.errstate(all="ignore"):  # IEEE arithmetic, as the monitor reads it: exp(exp(q)) > 5 holds at inf
+            return self._atom_code(preds, x)
+
+    @staticmethod
+    def _atom_code(preds: tuple[Callable[[np.ndarray], np.ndarray | float], ...], x: np.ndarray) -> np.ndarray:
         code = np.asarray(preds[0](x), dtype=bool)
         if len(preds) <= 7:  # bools viewed as 0/1 bytes: no conversion pass
             code = code.view(np.int8)
