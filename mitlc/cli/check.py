@@ -158,13 +158,15 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_n
     """
     from mitlc.monitor.offline import judged_formula, monitor, needed_variables, state_columns
     from mitlc.monitor.trace import read_trace
-    from mitlc.spec.parse import load_spec, parse_formula
+    from mitlc.spec.parse import load_spec, parse_formula, with_inline_props
 
     s = load_spec(spec)
+    judge = s  # the spec the monitor reads: with the inline predicates of --formula as propositions
     if formula_text is not None:
         try:
             formula = parse_formula(formula_text)
-            needed = needed_variables(s, formula)
+            judge = with_inline_props(s, formula)
+            needed = needed_variables(judge, formula)
         except MitlError as exc:
             raise exc.located("--formula", formula_text) from None
     else:
@@ -175,8 +177,10 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_n
             raise InputError("--net needs a spec with a 'formula' (its net is what the option runs)", file="--net")
         needed = tuple(dict.fromkeys((*needed, *needed_variables(s, s.formula))))
     tr, dt = read_trace(trace, needed, state_columns(s))
+    # the time column too: a formula of constants reads no state, and the trace's length is still its length
+    states = {"<time>": tr.t, **tr.columns}
     try:
-        result = monitor(s, tr.columns, dt, formula)
+        result = monitor(judge, states, dt, formula)
     except InputError as exc:
         raise exc.located(trace) from None
     ok = bool(result.satisfied[0])
