@@ -891,7 +891,10 @@ class NetRuntime:
         markings[np.arange(n_codes)[:, None], marked] = 1
         by_bytes = {m.tobytes(): c for c, m in enumerate(markings)}
         reward = charge = None
-        if n_codes * n_codes <= MAX_TABLE // 16:  # evaluating every pair of a large net costs more than it saves
+        pairs = n_codes * n_codes
+        # evaluating every pair of a large net costs more than it saves: pairs, and pairs x places (what the
+        # evaluation reads: 250 bounded G's, 750 places, would be 1.5 GB per marking array and a minute)
+        if pairs <= MAX_TABLE // 16 and pairs * self.n_places <= 4 * MAX_TABLE:
             prev = np.repeat(markings, n_codes, axis=0).astype(np.int64)
             now = np.tile(markings, (n_codes, 1)).astype(np.int64)
             if not self.graded:
