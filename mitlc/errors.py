@@ -12,6 +12,8 @@ p.mitl:3:11: error: undefined proposition 'kapa'
 
 from __future__ import annotations
 
+import re
+
 __all__ = [
     "MitlError",
     "SpecSyntaxError",
@@ -19,11 +21,36 @@ __all__ = [
     "CompileError",
     "TrainingError",
     "InputError",
+    "shorten_names",
+    "NAME_CHARS",
 ]
 
 
 _CONTEXT = 100
 """Characters of the offending line shown around the column."""
+
+NAME_CHARS = 60
+"""A name longer than this is cut in a message (its first characters and ``...``): a 900 KB
+identifier is said in 60 characters, not echoed whole."""
+
+_LONG_NAME = re.compile(rf"[A-Za-z_][A-Za-z0-9_]{{{NAME_CHARS},}}")
+
+
+def shorten_names(text: str) -> str:
+    """``text`` with each name longer than :data:`NAME_CHARS` cut to that many characters, ``...`` last
+    (hexadecimal digests, such as a SHA-256, are left whole).
+
+    >>> shorten_names("undefined proposition '" + "a" * 1000 + "'")
+    "undefined proposition 'aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa...'"
+    """
+
+    def cut(m: re.Match[str]) -> str:
+        name = m.group(0)
+        if re.fullmatch(r"[0-9a-f]+", name) and re.search(r"[0-9]", name):  # a digest, not a name
+            return name
+        return name[: NAME_CHARS - 3] + "..."
+
+    return _LONG_NAME.sub(cut, text)
 
 
 class MitlError(Exception):
@@ -41,6 +68,8 @@ class MitlError(Exception):
         source: str | None = None,
         hint: str | None = None,
     ) -> None:
+        message = shorten_names(message)
+        hint = shorten_names(hint) if hint is not None else None
         super().__init__(message)
         self.message = message
         self.file = file

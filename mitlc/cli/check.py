@@ -17,6 +17,13 @@ from mitlc.fileio import json_text
 __all__ = ["check"]
 
 
+MAX_STEPPED_SAMPLES = 10_000
+"""Most samples ``check --net`` steps one at a time: a net with timed obligations (nested intervals;
+each step reads the whole trial so far, :class:`mitlc.petri.timed.TimedState`, so time grows with
+the square of the trace's length) or one too large to tabulate (each step evaluates every guard).
+10,000 samples take seconds; a tabulated net steps any trace (one look-up per sample)."""
+
+
 def _net_view(spec, tr, dt: float) -> dict:
     """Step the spec's net (violations recorded: the spec's mode, or permanent) over the trace."""
     import numpy as np
@@ -46,14 +53,34 @@ def _net_view(spec, tr, dt: float) -> dict:
             watched.extend(e.names)
         stack.extend(e.children)
     idx = [rs.net.place_index(p) for p in dict.fromkeys(watched)]
-    M = rt.reset(x[:1])
     first, violated = None, []
-    for k in range(n):
-        if k:
-            M = rt.step(M, x[k : k + 1], k * dt)
-        marked = [rs.net.places[i].name for i in idx if M[0, i]]
-        if marked and first is None:
-            first, violated = float(tr.t[k]), marked
+    codes = rt.trace_codes(x, np.arange(n) * dt)
+    if codes is not None:  # every sample's propositions at once, a table look-up per sample
+        k = _first_marked(rt, codes, idx)
+        if k is not None:
+            M = _marking_at(rt, codes, k)
+            first, violated = float(tr.t[k]), [rs.net.places[i].name for i in idx if M[i]]
+    elif n > MAX_STEPPED_SAMPLES:
+        why = (
+            "has timed obligations (nested intervals), whose steps grow with the trace's length"
+            if rs.timed
+            else f"is too large to tabulate ({len(rs.net.places):,} places, {len(rt.atoms)} propositions)"
+        )
+        raise InputError(
+            f"the spec's net {why}: --net steps such a net one sample at a time, at most "
+            f"{MAX_STEPPED_SAMPLES:,} samples, and the trace has {n:,} (check without --net, or a shorter trace)",
+            file="--net",
+        )
+    else:  # the rule, sample by sample
+        M = rt.reset(x[:1])
+        for k in range(n):
+            if k:
+                M = rt.step(M, x[k : k + 1], k * dt)
+            marked = [rs.net.places[i].name for i in idx if M[0, i]]
+            if marked and first is None:
+                first, violated = float(tr.t[k]), marked
+                if not rs.timed:  # nothing more to report (obligations' verdicts need the whole trace)
+                    break
     words = {T.TRUE: "met", T.FALSE: "failed", T.PENDING: "pending"}
     verdicts = rt.verdicts()[0] if rs.timed else []
     return {
@@ -64,6 +91,40 @@ def _net_view(spec, tr, dt: float) -> dict:
             for tn, v in zip(rs.timed, verdicts, strict=True)
         ],
     }
+
+
+def _counter_tokens(rt, codes):
+    """The counting places' tokens after each step, ``(N, C)`` (row ``k - 1``: at sample ``k``)."""
+    import numpy as np
+
+    assert rt.tables is not None
+    return np.cumsum(rt.tables.counter_inc[codes[:-1], codes[1:]], axis=0)
+
+
+def _first_marked(rt, codes, places: list[int]) -> int | None:
+    """The first sample at which one of ``places`` holds a token, from the trace's marking codes."""
+    import numpy as np
+
+    if not places:
+        return None
+    counters = {int(p): j for j, p in enumerate(rt.counters.tolist())}
+    one = [p for p in places if p not in counters]
+    hit = np.zeros(len(codes), dtype=bool)
+    if one:
+        seen, where = np.unique(codes, return_inverse=True)
+        hit |= np.asarray(np.isin(rt.marked_places(seen), one).any(axis=1))[where.reshape(-1)]
+    counted = [counters[p] for p in places if p in counters]
+    if counted and len(codes) > 1:
+        hit[1:] |= (_counter_tokens(rt, codes)[:, counted] > 0).any(axis=1)
+    return int(np.argmax(hit)) if hit.any() else None
+
+
+def _marking_at(rt, codes, k: int):
+    """The full marking ``(P,)`` at sample ``k`` (counting places: what the steps so far added)."""
+    M = rt.decode(codes[k : k + 1])[0]
+    if rt.counters.size and k:
+        M[rt.counters] = _counter_tokens(rt, codes[: k + 1])[-1]
+    return M
 
 
 @click.command("check")
@@ -97,13 +158,15 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_n
     """
     from mitlc.monitor.offline import judged_formula, monitor, needed_variables, state_columns
     from mitlc.monitor.trace import read_trace
-    from mitlc.spec.parse import load_spec, parse_formula
+    from mitlc.spec.parse import load_spec, parse_formula, with_inline_props
 
     s = load_spec(spec)
+    judge = s  # the spec the monitor reads: with the inline predicates of --formula as propositions
     if formula_text is not None:
         try:
             formula = parse_formula(formula_text)
-            needed = needed_variables(s, formula)
+            judge = with_inline_props(s, formula)
+            needed = needed_variables(judge, formula)
         except MitlError as exc:
             raise exc.located("--formula", formula_text) from None
     else:
@@ -114,8 +177,10 @@ def check(spec: str, trace: str, formula_text: str | None, as_json: bool, with_n
             raise InputError("--net needs a spec with a 'formula' (its net is what the option runs)", file="--net")
         needed = tuple(dict.fromkeys((*needed, *needed_variables(s, s.formula))))
     tr, dt = read_trace(trace, needed, state_columns(s))
+    # the time column too: a formula of constants reads no state, and the trace's length is still its length
+    states = {"<time>": tr.t, **tr.columns}
     try:
-        result = monitor(s, tr.columns, dt, formula)
+        result = monitor(judge, states, dt, formula)
     except InputError as exc:
         raise exc.located(trace) from None
     ok = bool(result.satisfied[0])

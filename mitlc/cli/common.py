@@ -6,10 +6,14 @@ modules to register them, so nothing here may import :mod:`mitlc.cli.main`.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import re
 import sys
-from collections.abc import Callable
-from typing import Any
+import warnings
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any, TextIO
 
 import click
 
@@ -18,6 +22,7 @@ from mitlc.fileio import atomic_write, check_writable
 
 __all__ = [
     "handle_errors",
+    "numeric_warnings",
     "atomic_write",
     "check_writable",
     "compile_options",
@@ -29,6 +34,71 @@ __all__ = [
 
 PICTURES = ("svg", "png")
 """Formats that are rendered pictures (need ``-o FILE``)."""
+
+
+_NUMERIC = re.compile(r"(overflow|underflow|invalid value|divide by zero) encountered|discards the imaginary part")
+"""numpy's floating-point warnings (and its complex-to-real cast): the numbers, not the code, went wrong."""
+
+
+class NumericWarnings:
+    """numpy's floating-point warnings of one command, kept back and said in one line at its end
+    (:func:`numeric_warnings`): each is raised where it happens, by the million in a loop; what
+    the user needs is that it happened, once. Where an overflow is legitimate arithmetic (a
+    predicate's ``exp(exp(q))`` is inf, and inf > 5), the code says so with ``np.errstate``
+    and nothing is recorded."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.first: tuple[str, str, int] | None = None
+        self.places: set[tuple[str, int]] = set()
+
+    def line(self) -> str | None:
+        """``warning: numbers overflowed ...`` or None when nothing was recorded."""
+        if self.first is None:
+            return None
+        text, filename, lineno = self.first
+        where = Path(filename)
+        try:
+            where = where.relative_to(Path(__file__).resolve().parents[2])
+        except ValueError:
+            pass
+        more = len(self.places) - 1
+        others = f" and {more} other place{'s' if more != 1 else ''}" if more else ""
+        if "imaginary" in text:
+            what = "complex numbers were read as real ones, their imaginary parts dropped"
+        else:
+            what = "numbers left float64's range on the way; what was computed from them rests on inf or nan"
+        return f"mitlc: warning: {what} ({text}, at {where}:{lineno}{others})"
+
+
+@contextlib.contextmanager
+def numeric_warnings() -> Iterator[NumericWarnings]:
+    """Keep numpy's floating-point warnings back for the block (every occurrence counted, none
+    printed); other warnings show as usual."""
+    seen = NumericWarnings()
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def show(
+            message: Warning | str,
+            category: type[Warning],
+            filename: str,
+            lineno: int,
+            file: TextIO | None = None,
+            line: str | None = None,
+        ) -> None:
+            text = str(message)
+            if issubclass(category, RuntimeWarning) and _NUMERIC.search(text):
+                seen.count += 1
+                seen.places.add((filename, lineno))
+                if seen.first is None:
+                    seen.first = (text, filename, lineno)
+                return
+            shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        warnings.simplefilter("always", RuntimeWarning)  # every command sees its own (no registry across calls)
+        yield seen
 
 
 def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:

@@ -93,19 +93,32 @@ class _Group(click.Group):
     ) -> Any:
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode, **extra)
-        try:
-            rv = super().main(args, prog_name, complete_var, False, **extra)
-        except click.exceptions.ClickException as exc:
-            click.echo(_one_line(exc), err=True)
-            sys.exit(2 if exc.exit_code in (None, 1) else exc.exit_code)
-        except (click.exceptions.Abort, KeyboardInterrupt):
-            click.echo("interrupted", err=True)
-            interrupt.exit_interrupted()
-        except SystemExit as exc:  # a command's own exit after an interrupt (its message said what was kept)
-            if exc.code == 130:
+        from mitlc.cli.common import numeric_warnings
+
+        with numeric_warnings() as numeric:
+            try:
+                rv = super().main(args, prog_name, complete_var, False, **extra)
+            except click.exceptions.ClickException as exc:
+                click.echo(_one_line(exc), err=True)
+                sys.exit(2 if exc.exit_code in (None, 1) else exc.exit_code)
+            except (click.exceptions.Abort, KeyboardInterrupt):
+                click.echo("interrupted", err=True)
                 interrupt.exit_interrupted()
-            raise
+            except SystemExit as exc:  # a command's own exit after an interrupt (its message said what was kept)
+                if exc.code == 130:
+                    interrupt.exit_interrupted()
+                if exc.code in (0, 1, None):  # a result (check's 1: violated): the overflow behind it, once
+                    _say_numeric(numeric.line())
+                raise
+            _say_numeric(numeric.line())
         sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _say_numeric(line: str | None) -> None:
+    """The one line of :class:`mitlc.cli.common.NumericWarnings`, if there is one (after an error,
+    exit 2, the error's own line says what went wrong, and this one is left out)."""
+    if line is not None:
+        click.echo(line, err=True)
 
 
 def _one_line(exc: click.exceptions.ClickException) -> str:

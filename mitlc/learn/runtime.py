@@ -310,6 +310,11 @@ class NetRuntime:
         preds = self._fast_preds
         if not preds:
             return np.zeros(np.shape(x)[0], dtype=np.int64)
+        with np.errstate(all="ignore"):  # IEEE arithmetic, as the monitor reads it: exp(exp(q)) > 5 holds at inf
+            return self._atom_code(preds, x)
+
+    @staticmethod
+    def _atom_code(preds: tuple[Callable[[np.ndarray], np.ndarray | float], ...], x: np.ndarray) -> np.ndarray:
         code = np.asarray(preds[0](x), dtype=bool)
         if len(preds) <= 7:  # bools viewed as 0/1 bytes: no conversion pass
             code = code.view(np.int8)
@@ -628,6 +633,43 @@ class NetRuntime:
             code_next = tables.next_code[self.clock_code(tau_next), code, self.atom_code(x_next)]
         return self.advance_code(code_next, x_next)
 
+    def trace_codes(self, x: np.ndarray, taus: np.ndarray) -> np.ndarray | None:
+        """The marking codes ``(N+1,)`` of one run over a whole recorded trace: :meth:`reset_code` on
+        ``x[0]``, then :meth:`step_code` on each ``x[k]`` at ``taus[k]``, ``x`` ``(N+1, n)``. The
+        propositions and clock conditions of every sample are evaluated at once, then one table
+        look-up per sample (what ``mitlc check --net`` steps a long trace with). None where a step
+        needs more than the tables: no tables, or timed obligations.
+
+        >>> from mitlc.spec.parse import parse_spec
+        >>> from mitlc.petri.compile import compile_spec
+        >>> rt = NetRuntime(compile_spec(parse_spec("prop a = x < 1\\nformula F[0,1] a")), ["x"])
+        >>> x, taus = np.array([[2.0], [0.5], [3.0]]), np.array([0.0, 0.6, 1.2])
+        >>> codes = [rt.reset_code(x[:1])]
+        >>> for k in (1, 2):
+        ...     codes.append(rt.step_code(codes[-1], x[k : k + 1], taus[k]))
+        >>> rt.trace_codes(x, taus).tolist() == np.concatenate(codes).tolist()
+        True
+        """
+        tables = self.tables
+        if tables is None or self.timed:
+            return None
+        x = np.asarray(x, dtype=float)
+        code = int(self.reset_code(x[:1])[0])
+        if len(x) == 1:
+            return np.array([code], dtype=np.int64)
+        atoms = np.asarray(self.atom_code(x[1:]), dtype=np.int64)
+        clocks = np.asarray(self.clock_code(np.asarray(taus[1:], dtype=float)), dtype=np.int64)
+        clocks = np.broadcast_to(clocks, atoms.shape)
+        table = np.ascontiguousarray(tables.next_code, dtype=np.int64)
+        n_codes, n_atoms = table.shape[1], table.shape[2]
+        flat = table.reshape(-1).data  # a memoryview, whose items are Python ints: the loop stays in plain Python
+        out = [code]
+        append = out.append
+        for base in (clocks * n_codes * n_atoms + atoms).tolist():
+            code = flat[base + code * n_atoms]
+            append(code)
+        return np.array(out, dtype=np.int64)
+
     def sample_stepper(self) -> Callable[[int, Sequence[float], float], int] | None:
         """:meth:`step_code` for one run on Python numbers, ``step(code, x, tau) -> code``, with ``x`` the
         state as a sequence of floats (``state_names`` order): the propositions in plain Python
@@ -849,7 +891,10 @@ class NetRuntime:
         markings[np.arange(n_codes)[:, None], marked] = 1
         by_bytes = {m.tobytes(): c for c, m in enumerate(markings)}
         reward = charge = None
-        if n_codes * n_codes <= MAX_TABLE // 16:  # evaluating every pair of a large net costs more than it saves
+        pairs = n_codes * n_codes
+        # evaluating every pair of a large net costs more than it saves: pairs, and pairs x places (what the
+        # evaluation reads: 250 bounded G's, 750 places, would be 1.5 GB per marking array and a minute)
+        if pairs <= MAX_TABLE // 16 and pairs * self.n_places <= 4 * MAX_TABLE:
             prev = np.repeat(markings, n_codes, axis=0).astype(np.int64)
             now = np.tile(markings, (n_codes, 1)).astype(np.int64)
             if not self.graded:

@@ -176,20 +176,33 @@ class _Eval:
         return self._atoms[name]
 
     def sig(self, f: A.Formula, lat: Lattice) -> np.ndarray:
-        key = (lat.name, f)
-        out = self._cache.get(key)
+        out = self._cache.get((lat.name, f))
         if out is None:
-            out = _signal(f, self, lat)
-            self._cache[key] = out
+            out = self._fill(f, lat.name, lambda node: _signal(node, self, lat))
         return out
 
     def settle(self, f: A.Formula) -> np.ndarray:
-        key = ("settle", f)
-        out = self._cache.get(key)
+        out = self._cache.get(("settle", f))
         if out is None:
-            out = _settle(f, self)
-            self._cache[key] = out
+            out = self._fill(f, "settle", lambda node: _settle(node, self))
         return out
+
+    def _fill(self, f: A.Formula, kind: str, compute: Callable[[A.Formula], np.ndarray]) -> np.ndarray:
+        """``f``'s value of ``kind``, its subformulas' first (children before parents, from an
+        explicit stack): each node's case then finds its operands cached, so the Python stack
+        stays shallow however deep the formula is (the parser allows 256 levels)."""
+        stack: list[tuple[A.Formula, bool]] = [(f, False)]
+        while stack:
+            node, ready = stack.pop()
+            key = (kind, node)
+            if key in self._cache:
+                continue
+            if ready:
+                self._cache[key] = compute(node)
+            else:
+                stack.append((node, True))
+                stack.extend((c, False) for c in node.children)
+        return self._cache[(kind, f)]
 
     def offsets(self, interval: A.Interval) -> tuple[int, float]:
         return offsets(interval, self.dt)
@@ -421,13 +434,28 @@ def _span(ev: _Eval, interval: A.Interval, k: int) -> tuple[int, int]:
     return k + lo, int(min(k + hi, ev.N))
 
 
+_Blame = A.Formula | tuple[A.Formula, int]
+"""A step of :func:`_blame`: the responsible subformula, or where to look next (a part false at a sample)."""
+
+
+def _blame_root(f: A.Formula, ev: _Eval, r: int, k: int) -> A.Formula:
+    """For ``f`` false at sample ``k`` of run ``r``: the smallest subformula responsible, found by
+    descending one :func:`_blame` step at a time (a loop, not a recursion: any depth)."""
+    while True:
+        step = _blame(f, ev, r, k)
+        if isinstance(step, A.Formula):
+            return step
+        f, k = step
+
+
 @singledispatch
-def _blame(f: A.Formula, ev: _Eval, r: int, k: int) -> A.Formula:
-    """For ``f`` false at sample ``k`` of run ``r``: the smallest subformula responsible."""
+def _blame(f: A.Formula, ev: _Eval, r: int, k: int) -> _Blame:
+    """One step down from ``f``, false at sample ``k`` of run ``r``: ``f`` itself when it is the
+    smallest part responsible, else ``(part, sample)``, a part false there to look into."""
     raise CompileError(f"cannot monitor formula node {type(f).__name__}")
 
 
-def _self(f: A.Formula, ev: _Eval, r: int, k: int) -> A.Formula:
+def _self(f: A.Formula, ev: _Eval, r: int, k: int) -> _Blame:
     return f
 
 
@@ -440,57 +468,57 @@ del _node_type
 
 
 @_blame.register
-def _(f: A.Weighted, ev: _Eval, r: int, k: int) -> A.Formula:
-    return _blame(f.child, ev, r, k)
+def _(f: A.Weighted, ev: _Eval, r: int, k: int) -> _Blame:
+    return f.child, k
 
 
 @_blame.register
-def _(f: A.And, ev: _Eval, r: int, k: int) -> A.Formula:
+def _(f: A.And, ev: _Eval, r: int, k: int) -> _Blame:
     failed = [s for s in (f.left, f.right) if not ev.sig(s, BOOL)[r, k]]
     side = min(failed, key=lambda s: ev.settle(s)[r, k])
-    return _blame(side, ev, r, k)
+    return side, k
 
 
 @_blame.register
-def _(f: A.Implies, ev: _Eval, r: int, k: int) -> A.Formula:
-    return _blame(f.right, ev, r, k)
+def _(f: A.Implies, ev: _Eval, r: int, k: int) -> _Blame:
+    return f.right, k
 
 
 @_blame.register
-def _(f: A.Globally, ev: _Eval, r: int, k: int) -> A.Formula:
+def _(f: A.Globally, ev: _Eval, r: int, k: int) -> _Blame:
     first, last = _span(ev, f.interval, k)
     failed = ~ev.sig(f.child, BOOL)[r, first : last + 1]
     when = np.where(failed, ev.settle(f.child)[r, first : last + 1], _INF)
-    return _blame(f.child, ev, r, first + int(np.argmin(when)))
+    return f.child, first + int(np.argmin(when))
 
 
 @_blame.register
-def _(f: A.Until, ev: _Eval, r: int, k: int) -> A.Formula:
+def _(f: A.Until, ev: _Eval, r: int, k: int) -> _Blame:
     first, last = _span(ev, f.interval, k)
     stop = _first(ev.sig(f.left, BOOL)[r], k, ev.N, False)
     if first <= last and stop is not None and stop < last:
-        return _blame(f.left, ev, r, stop)  # left failed before right came
+        return f.left, stop  # left failed before right came
     return f  # the window passed without a witness
 
 
 @_blame.register
-def _(f: A.Release, ev: _Eval, r: int, k: int) -> A.Formula:
+def _(f: A.Release, ev: _Eval, r: int, k: int) -> _Blame:
     first, last = _span(ev, f.interval, k)
     stop = _first(ev.sig(f.left, BOOL)[r], k, ev.N, True)
     end = last if stop is None else min(last, stop)
     witness = _first(ev.sig(f.right, BOOL)[r], first, end, False)
     if witness is None:  # pragma: no cover - f is false, so !left U !right has a witness
         return f
-    return _blame(f.right, ev, r, witness)
+    return f.right, witness
 
 
 @_blame.register
-def _(f: A.WeakUntil, ev: _Eval, r: int, k: int) -> A.Formula:
+def _(f: A.WeakUntil, ev: _Eval, r: int, k: int) -> _Blame:
     _, last = _span(ev, _upto(f.interval), k)
     stop = _first(ev.sig(f.left, BOOL)[r], k, last, False)
     if stop is None:  # pragma: no cover - f is false, so G[0,sup I] left fails
         return f
-    return _blame(f.left, ev, r, stop)
+    return f.left, stop
 
 
 # ----------------------------------------------------------------- inputs
@@ -657,7 +685,7 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     if not satisfied.all():
         violation = np.where(satisfied, np.nan, ev.settle(f)[:, 0] * ev.dt)
     for r in range(ev.R):
-        failing.append(None if satisfied[r] else str(_blame(f, ev, r, 0)))
+        failing.append(None if satisfied[r] else str(_blame_root(f, ev, r, 0)))
     return MonitorResult(satisfied, robustness, violation, tuple(failing))
 
 

@@ -67,7 +67,7 @@ from mitlc.petri.violations import (
 from mitlc.spec import ast as A
 from mitlc.spec.grades import Grader
 from mitlc.spec.model import MONITOR_REWARDS, OPTIONS, Spec
-from mitlc.spec.passes import is_state_formula, normal_form
+from mitlc.spec.passes import desugar, is_state_formula, normal_form
 
 __all__ = ["CompileOptions", "RewardSystem", "compile_spec", "reward_reading", "state_groups"]
 
@@ -720,6 +720,29 @@ def _resolve(e: R.RExpr, index: dict[str, int]) -> R.RExpr:
     return dataclasses.replace(e, **{field_name: children})  # type: ignore[type-var]  # e is Sum/Prod/Min/Max here
 
 
+MAX_NORMAL_FORM = 50_000
+"""Most nodes the normal form of a formula may have as a tree (what the compiler's passes walk):
+``<->`` and ``W`` repeat their operands, so ten nested ``<->`` are already a thousand times the
+formula (each nesting about doubles the compile time)."""
+
+
+def _expanded_size(f: A.Formula) -> int:
+    """Nodes of ``f`` counted as a tree (a shared subformula once per use), computed on the shared
+    nodes once each, children before parents, without recursion."""
+    size: dict[int, int] = {}
+    stack: list[tuple[A.Formula, bool]] = [(f, False)]
+    while stack:
+        node, ready = stack.pop()
+        if id(node) in size:
+            continue
+        if ready:
+            size[id(node)] = 1 + sum(size[id(c)] for c in node.children)
+        else:
+            stack.append((node, True))
+            stack.extend((c, False) for c in node.children)
+    return size[id(f)]
+
+
 def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSystem:
     """Compile a checked spec into its reward system."""
     if spec.formula is None:
@@ -745,6 +768,14 @@ def compile_spec(spec: Spec, options: CompileOptions | None = None) -> RewardSys
         raise CompileError(
             f"reward {options.reward} is paid by the monitor, not by the net: --violations {options.violations} "
             "applies to the net's rewards (net, shaped, graded)",
+            file=spec.path,
+        )
+    size = _expanded_size(desugar(spec.formula))
+    if size > MAX_NORMAL_FORM:
+        raise CompileError(
+            f"the formula's normal form would have {size:,} operators, more than the {MAX_NORMAL_FORM:,} supported: "
+            "each '<->' and 'W' repeats its operands, so nesting them multiplies the formula; nest fewer, or give "
+            "the repeated parts their own propositions",
             file=spec.path,
         )
     nf = normal_form(spec.formula)

@@ -14,6 +14,7 @@ All functions are pure: they return strings or objects and write nothing.
 
 from __future__ import annotations
 
+import json
 import math
 import xml.etree.ElementTree as ET
 from typing import Any
@@ -27,6 +28,11 @@ from mitlc.petri.compile import RewardSystem
 from mitlc.spec import ast as A
 
 __all__ = ["to_dict", "to_json", "to_text", "to_pnml", "to_networkx", "reward_tree", "PNML_NS", "PTNET_TYPE"]
+
+TEXT_TABLE_PLACES = 64
+"""The text summary prints ``D`` as a table up to this many places (columns) ..."""
+TEXT_TABLE_ENTRIES = 50_000
+"""... and this many entries (transitions x places); past either, it says the size instead (the arcs are listed)."""
 
 PNML_NS = "http://www.pnml.org/version-2009/grammar/pnml"
 PTNET_TYPE = "http://www.pnml.org/version-2009/grammar/ptnet"
@@ -52,6 +58,17 @@ def reward_tree(e: R.RExpr) -> dict[str, Any]:
 
 def to_dict(rs: RewardSystem) -> dict[str, Any]:
     """Everything about the compiled net as plain JSON-able data (docs/net.schema.json)."""
+    d = _dict(rs)
+    for name in _MATRICES:
+        d[name] = getattr(rs.net, name).tolist()
+    return d
+
+
+_MATRICES = ("D_minus", "D_plus", "D")
+
+
+def _dict(rs: RewardSystem) -> dict[str, Any]:
+    """:func:`to_dict` with each dense matrix a placeholder: :func:`to_json` writes them itself."""
     net = rs.net
     return {
         "spec": rs.spec.path,
@@ -89,9 +106,7 @@ def to_dict(rs: RewardSystem) -> dict[str, Any]:
             }
             for s in net.subnets
         ],
-        "D_minus": net.D_minus.tolist(),
-        "D_plus": net.D_plus.tolist(),
-        "D": net.D.tolist(),
+        **{name: _placeholder(name) for name in _MATRICES},
         "M0": net.M0.tolist(),
         "reward": str(rs.reward),
         "reward_tree": reward_tree(rs.reward),
@@ -121,8 +136,53 @@ def _interval_text(i: A.Interval) -> str:
 
 
 def to_json(rs: RewardSystem) -> str:
-    """The net as strict JSON (docs/net.schema.json); a non-finite number would be null."""
-    return json_text(to_dict(rs), indent=2, ensure_ascii=False)
+    """The net as strict JSON (docs/net.schema.json); a non-finite number would be null.
+
+    The text is ``json.dumps(to_dict(rs), indent=2)``'s, byte for byte, but the dense
+    matrices (transitions x places each, the bulk of a big net's JSON) are written by
+    :func:`_matrix_json`, not walked number by number by the JSON encoder.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> from mitlc.petri.compile import compile_spec
+    >>> rs = compile_spec(parse_spec("prop a = x < 1\\nformula F[0,1] a & G a"))
+    >>> to_json(rs) == json_text(to_dict(rs), indent=2, ensure_ascii=False)
+    True
+    """
+    text = json_text(_dict(rs), indent=2, ensure_ascii=False)
+    for name in _MATRICES:
+        token = json.dumps(_placeholder(name))
+        assert text.count(token) == 1
+        text = text.replace(token, _matrix_json(getattr(rs.net, name), "  "))
+    return text
+
+
+def _placeholder(name: str) -> str:
+    return f"\0mitlc-matrix-{name}\0"  # no spec text can hold a NUL (json writes it \u0000)
+
+
+def _matrix_json(a: np.ndarray, indent: str) -> str:
+    """``a`` (2-D integers) as ``json.dumps(a.tolist(), indent=2)`` writes it at ``indent``.
+
+    >>> a = np.array([[0, -1], [1, 0]])
+    >>> _matrix_json(a, "  ") == json.dumps({"D": a.tolist()}, indent=2)[len('{\\n  "D": '):-2]
+    True
+    >>> _matrix_json(np.zeros((0, 3), int), ""), _matrix_json(np.zeros((2, 0), int), "")
+    ('[]', '[\\n  [],\\n  []\\n]')
+    """
+    rows, cols = a.shape
+    if rows == 0:
+        return "[]"
+    inner, cell = indent + "  ", indent + "    "
+    if cols == 0:
+        return "[\n" + ",\n".join([inner + "[]"] * rows) + "\n" + indent + "]"
+    lo, hi = int(a.min()), int(a.max())
+    if hi - lo <= 1024:  # arc weights: a few small integers, looked up by offset (no sort)
+        values, where = np.arange(lo, hi + 1), a - lo
+    else:  # pragma: no cover - no compiled net has such weights
+        values, where = np.unique(a, return_inverse=True)
+    cells = np.array([cell + str(int(v)) for v in values], dtype=object)[where.reshape(rows, cols)]
+    lines = [inner + "[\n" + ",\n".join(row) + "\n" + inner + "]" for row in cells.tolist()]
+    return "[\n" + ",\n".join(lines) + "\n" + indent + "]"
 
 
 def to_text(rs: RewardSystem) -> str:
@@ -158,7 +218,13 @@ def to_text(rs: RewardSystem) -> str:
         out.append(f"  {t.name.ljust(tw)}  {arc}  when {t.guard}")
     out.append("")
     out.append("D = D+ - D-  (rows: transitions, columns: places)")
-    if net.transitions:
+    T, P = len(net.transitions), len(net.places)
+    if T and (P > TEXT_TABLE_PLACES or T * P > TEXT_TABLE_ENTRIES):  # a table nobody reads, quadratic in size
+        out.append(
+            f"  {T:,} x {P:,}, too big for a table: each transition's row is its arcs above "
+            f"({net.pre.nnz + net.post.nnz:,} arcs; --format json has the matrices)"
+        )
+    elif net.transitions:
         widths = [len(p.name) for p in net.places]
         out.append("  " + " " * tw + "  " + "  ".join(p.name for p in net.places))
         row = np.zeros(len(net.places), dtype=np.int64)

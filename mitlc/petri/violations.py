@@ -141,9 +141,11 @@ MAX_PAIRS = 200_000
 
 def _pairs(net: Net) -> tuple[np.ndarray, np.ndarray] | None:
     """Every one-move step of the net as (M_k, M_k+1) arrays, or None if there are too many."""
-    sizes = [len(sub.places) ** 2 for sub in net.subnets]
-    if float(np.prod(sizes, dtype=float)) > MAX_PAIRS:
-        return None
+    count = 1
+    for sub in net.subnets:  # exact integers, stopping at the limit (a float product overflows: 500 sub-nets)
+        count *= len(sub.places) ** 2
+        if count > MAX_PAIRS:
+            return None
     pairs = list(net.step_pairs())
     return np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])
 

@@ -20,11 +20,14 @@ True
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+
+from mitlc.errors import InputError, MitlError
 
 __all__ = [
     "StateVar",
@@ -51,14 +54,45 @@ def wrap_angle(q: np.ndarray) -> np.ndarray:
     return (q + np.pi) % (2 * np.pi) - np.pi
 
 
+def _real(v: object) -> bool:
+    """A real number (``bool`` is not one here)."""
+    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool | np.bool_)
+
+
 @dataclass(frozen=True)
 class StateVar:
-    """One state variable: its name, bounds, and whether it is an angle."""
+    """One state variable: its name, bounds, and whether it is an angle.
+
+    Checked when built: a name, finite bounds with ``lo < hi``.
+
+    >>> StateVar("v", 3.0, -3.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: state variable 'v': its bounds must be finite numbers with lo < hi, got [3, -3]
+    """
 
     name: str
     lo: float
     hi: float
     periodic: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ValueError(f"a state variable's name must be a name such as 'x' or 'qdot', got {self.name!r}")
+        if not (_real(self.lo) and _real(self.hi) and math.isfinite(self.lo) and math.isfinite(self.hi)) or not (
+            self.lo < self.hi
+        ):
+            raise ValueError(
+                f"state variable '{self.name}': its bounds must be finite numbers with lo < hi, "
+                f"got [{_num(self.lo)}, {_num(self.hi)}]"
+            )
+        object.__setattr__(self, "lo", float(self.lo))
+        object.__setattr__(self, "hi", float(self.hi))
+
+
+def _num(v: object) -> str:
+    """A value for a message: numbers as ``%g``, anything else as its repr."""
+    return f"{float(v):g}" if _real(v) else repr(v)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -99,6 +133,78 @@ class Plant:
     """An environment plant's state lines (:class:`mitlc.plants.gym_env.ObsVar`: each state
     variable read off the flattened observation); empty for an ODE plant."""
 
+    def __post_init__(self) -> None:
+        """Refuse, when the plant is built, what would fail later (in a trainer, with a traceback)."""
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ValueError(f"a plant's name must be a non-empty string, got {self.name!r}")
+        where = f"plant '{self.name}'"
+        state = tuple(self.state) if isinstance(self.state, Sequence) and not isinstance(self.state, str) else None
+        if not state or not all(isinstance(v, StateVar) for v in state):
+            raise ValueError(f"{where}: state must be a non-empty sequence of StateVar, got {self.state!r}")
+        names = [v.name for v in state]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"{where}: state variable {', '.join(map(repr, twice))} is given twice")
+        object.__setattr__(self, "state", state)
+        if not isinstance(self.defaults, Mapping):
+            raise ValueError(f"{where}: defaults must be a mapping of parameter names to numbers")
+        for k, v in self.defaults.items():
+            if not isinstance(k, str) or not k.isidentifier():
+                raise ValueError(f"{where}: parameter names must be names such as 'dt', got {k!r}")
+            if not (_real(v) and math.isfinite(v)):
+                raise ValueError(f"{where}: parameter '{k}' must be a finite number, got {_num(v)}")
+        dt = self.defaults.get("dt")
+        if dt is None or not dt > 0:
+            got = "none" if dt is None else _num(dt)
+            raise ValueError(f"{where}: parameter 'dt' (seconds per step) must be a positive number, got {got}")
+        u_max = self.defaults.get("u_max")
+        if u_max is None and self.make_simulator is None:
+            raise ValueError(f"{where}: parameter 'u_max' (the input bound, |u| <= u_max) is missing from defaults")
+        if u_max is not None and not u_max >= 0:
+            raise ValueError(
+                f"{where}: parameter 'u_max' (the input bound, |u| <= u_max) must be 0 or more, got {_num(u_max)}"
+            )
+        if not callable(self.dynamics):
+            raise ValueError(f"{where}: dynamics must be a function dynamics(x, u, params) -> xdot")
+        unknown = [c for c in self.clip if c not in names]
+        if unknown:
+            raise ValueError(f"{where}: clip names {', '.join(map(repr, unknown))}, not among its state {names}")
+
+    def _dynamics_fault(self, message: str, exc: BaseException | None = None) -> InputError:
+        """``FILE:LINE: error: plant 'NAME': ...``: the user's dynamics failed (the file and line where,
+        as far as Python knows where the function lives)."""
+        code = getattr(self.dynamics, "__code__", None)
+        file = code.co_filename if code is not None else None
+        line = code.co_firstlineno if code is not None else None
+        tb = exc.__traceback__ if exc is not None else None
+        while tb is not None:  # the last line of the dynamics' file the error passed through
+            if tb.tb_frame.f_code.co_filename == file:
+                line = tb.tb_lineno
+            tb = tb.tb_next
+        return InputError(f"plant '{self.name}': {message}", file=file or f"plant '{self.name}'", line=line)
+
+    def dynamics_checked(self, x: np.ndarray, u: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
+        """``dynamics(x, u, params)``, or one line naming the plant, its file and line: an exception
+        in it, or a result that is not one row of ``n`` numbers per copy."""
+        try:
+            out = self.dynamics(x, u, params)
+        except MitlError:
+            raise
+        except Exception as exc:  # the user's code: any failure is one line
+            raise self._dynamics_fault(f"its dynamics raised {type(exc).__name__}: {exc}", exc) from None
+        shape = getattr(out, "shape", None)
+        if shape != x.shape or not isinstance(out, np.ndarray) or out.dtype.kind not in "fiu":
+            what = (
+                f"an array of shape {shape} and dtype {out.dtype}"
+                if isinstance(out, np.ndarray)
+                else f"a {type(out).__name__}"
+            )
+            raise self._dynamics_fault(
+                f"its dynamics returned {what}; expected a float array of shape {x.shape} "
+                f"(one row per copy, one column per state variable: {', '.join(self.state_names)})"
+            )
+        return out
+
     @property
     def stepped(self) -> bool:
         """True for a plant that cannot be set to a state (an environment), only reset and stepped."""
@@ -132,7 +238,7 @@ class Plant:
         """One sample period of RK4; ``x`` is ``(R, n)``, ``u`` is ``(R,)``."""
         dt = params["dt"]
         u = np.clip(u, -params["u_max"], params["u_max"])
-        f = self.dynamics
+        f = self.dynamics_checked
         k1 = f(x, u, params)
         k2 = f(x + 0.5 * dt * k1, u, params)
         k3 = f(x + 0.5 * dt * k2, u, params)

@@ -69,7 +69,10 @@ _MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 
 def _plants_in(value: Any, where: str, option: str | None = None) -> list[Plant]:
     if callable(value) and not isinstance(value, Plant):
-        value = value()
+        try:
+            value = value()
+        except Exception as exc:  # the user's code (a Plant it builds may be refused): one line
+            raise InputError(f"calling it failed: {type(exc).__name__}: {exc}", file=where) from None
     if isinstance(value, Plant):
         return [value]
     if isinstance(value, Iterable) and not isinstance(value, (str, bytes)):

@@ -178,12 +178,32 @@ class Formula:
     def __invert__(self) -> Formula:
         return Not(self)
 
-    def __str__(self) -> str:  # pragma: no cover - every node overrides
+    def __str__(self) -> str:
+        return _text(self)
+
+    def _show(self, kids: list[str]) -> str:  # pragma: no cover - every node overrides
+        """This node's text, given its children's."""
         raise NotImplementedError
 
 
-def _wrap(f: Formula, min_prec: int) -> str:
-    text = str(f)
+def _text(f: Formula) -> str:
+    """``f`` as MITL text, built children first from an explicit stack (no recursion, so any
+    depth prints; node ids are keys, safe while ``f`` holds its nodes)."""
+    done: dict[int, str] = {}
+    stack: list[tuple[Formula, bool]] = [(f, False)]
+    while stack:
+        node, ready = stack.pop()
+        if id(node) in done:
+            continue
+        if ready:
+            done[id(node)] = node._show([done[id(c)] for c in node.children])
+        else:
+            stack.append((node, True))
+            stack.extend((c, False) for c in node.children)
+    return done[id(f)]
+
+
+def _wrap(f: Formula, text: str, min_prec: int) -> str:
     return f"({text})" if f.prec < min_prec else text
 
 
@@ -198,7 +218,7 @@ class Const(Formula):
     value: bool
     pos: Pos | None = field(default=None, compare=False, repr=False)
 
-    def __str__(self) -> str:
+    def _show(self, kids: list[str]) -> str:
         return "true" if self.value else "false"
 
 
@@ -211,7 +231,7 @@ class Atom(Formula):
     pos: Pos | None = field(default=None, compare=False, repr=False)
     pred: object | None = field(default=None, compare=False, repr=False)
 
-    def __str__(self) -> str:
+    def _show(self, kids: list[str]) -> str:
         return self.name if self.pred is None else f"({self.pred})"
 
 
@@ -225,8 +245,8 @@ class Not(Formula):
     def children(self) -> tuple[Formula, ...]:
         return (self.child,)
 
-    def __str__(self) -> str:
-        return "!" + _wrap(self.child, _PREC_UNARY)
+    def _show(self, kids: list[str]) -> str:
+        return "!" + _wrap(self.child, kids[0], _PREC_UNARY)
 
 
 @dataclass(frozen=True, slots=True)
@@ -245,8 +265,8 @@ class Weighted(Formula):
     def children(self) -> tuple[Formula, ...]:
         return (self.child,)
 
-    def __str__(self) -> str:
-        return f"{fmt_number(self.weight)} * {_wrap(self.child, _PREC_UNARY)}"
+    def _show(self, kids: list[str]) -> str:
+        return f"{fmt_number(self.weight)} * {_wrap(self.child, kids[0], _PREC_UNARY)}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -260,8 +280,8 @@ class Eventually(Formula):
     def children(self) -> tuple[Formula, ...]:
         return (self.child,)
 
-    def __str__(self) -> str:
-        return f"F{_interval_text(self.interval)} {_wrap(self.child, _PREC_UNARY)}"
+    def _show(self, kids: list[str]) -> str:
+        return f"F{_interval_text(self.interval)} {_wrap(self.child, kids[0], _PREC_UNARY)}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -275,8 +295,8 @@ class Globally(Formula):
     def children(self) -> tuple[Formula, ...]:
         return (self.child,)
 
-    def __str__(self) -> str:
-        return f"G{_interval_text(self.interval)} {_wrap(self.child, _PREC_UNARY)}"
+    def _show(self, kids: list[str]) -> str:
+        return f"G{_interval_text(self.interval)} {_wrap(self.child, kids[0], _PREC_UNARY)}"
 
 
 class _Binary(Formula):
@@ -291,11 +311,11 @@ class _Binary(Formula):
     def _op_text(self) -> str:
         return self.symbol
 
-    def __str__(self) -> str:
+    def _show(self, kids: list[str]) -> str:
         left_min = self.prec + 1 if self.right_assoc else self.prec
         right_min = self.prec if self.right_assoc else self.prec + 1
-        left = _wrap(self.left, left_min)  # type: ignore[attr-defined]
-        right = _wrap(self.right, right_min)  # type: ignore[attr-defined]
+        left = _wrap(self.left, kids[0], left_min)  # type: ignore[attr-defined]
+        right = _wrap(self.right, kids[1], right_min)  # type: ignore[attr-defined]
         return f"{left} {self._op_text()} {right}"
 
 

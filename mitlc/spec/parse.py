@@ -1207,3 +1207,55 @@ def load_spec(path: str | Path) -> Spec:
     except UnicodeDecodeError as exc:
         raise SpecError(f"spec is not UTF-8 text (byte {exc.start})", file=str(path)) from None
     return parse_spec(text, str(path))
+
+
+def with_inline_props(spec: Spec, f: A.Formula) -> Spec:
+    """``spec`` with the inline predicates of ``f``, a formula given apart from the spec (``mitlc check
+    --formula 'abs(q) < 0.3 U[0,1] (qdot > 1)'``), added as propositions, named and checked as a
+    spec's own are: a name that a prop line defines otherwise, a predicate nested too deep, an
+    unknown state variable or a proposition used as a number is a :class:`SpecError` at the predicate.
+
+    >>> spec = parse_spec("plant pendulum\\nprop up = abs(q) < 0.3\\nformula F up")
+    >>> [p.name for p in with_inline_props(spec, parse_formula("up U[0,1] (qdot > 1)")).props]
+    ['up', 'qdot_gt_1']
+    """
+    import dataclasses  # here, not at the top: this function is an addition kept apart
+
+    props = {p.name: p for p in spec.props}
+    plant = spec.plant
+    state = set(plant.state_names) if plant is not None else None
+    for node in A.walk(f):
+        if not (isinstance(node, A.Atom) and isinstance(node.pred, P.Pred)):
+            continue
+        pos = node.pos or A.Pos(1, 1)
+        known = props.get(node.name)
+        if known is not None:
+            if str(known.pred) != str(node.pred):
+                raise SpecError(
+                    f"the inline predicate '{node.pred}' is named '{node.name}', which the spec defines "
+                    f"as '{known.pred}': write that proposition's name, or another predicate",
+                    line=pos.line,
+                    column=pos.column,
+                )
+            continue
+        problem = _too_deep(node.pred, "inline predicate:")
+        if problem is not None:
+            raise SpecError(problem, line=pos.line, column=pos.column)
+        for v in P.variables(node.pred):
+            where = v.pos or pos
+            if v.name in props and (state is None or v.name not in state):
+                raise SpecError(
+                    f"'{v.name}' is a proposition, not a number: a comparison compares state variables",
+                    line=where.line,
+                    column=where.column,
+                )
+            if plant is not None and state is not None and v.name not in state:
+                raise SpecError(
+                    f"unknown state variable '{v.name}' (plant '{plant.name}' has: {', '.join(plant.state_names)})",
+                    line=where.line,
+                    column=where.column,
+                )
+        props[node.name] = PropDef(node.name, node.pred, pos=pos, inline=True)
+    if len(props) == len(spec.props):
+        return spec
+    return dataclasses.replace(spec, props=tuple(props.values()))

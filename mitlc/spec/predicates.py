@@ -326,7 +326,7 @@ def evaluate(p: Pred, env: Mapping[str, np.ndarray | float]) -> np.ndarray:
     """Evaluate ``p`` elementwise over arrays of state values (broadcasting)."""
     f: Callable[[Mapping[str, np.ndarray | float]], np.ndarray | float]
     f = compile_numpy(p, lambda name: lambda e: np.asarray(e[name], dtype=float))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(all="ignore"):  # IEEE arithmetic: exp(exp(q)) past 1e308 is inf, and inf > 5 holds
         return np.asarray(f(env))
 
 

@@ -7,7 +7,12 @@ exception)]``: :class:`Backend`.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import socket
+import sys
+import tempfile
 import time
 from collections import Counter, deque
 from collections.abc import Callable, Iterator, Sequence
@@ -198,9 +203,13 @@ class RayBackend:
         ray = self._import()
         connected_here = False
         if not ray.is_initialized():
+            if self.address:
+                probe_ray_address(self.address)
+            said: list[str] = []
             try:
                 if self.address:
-                    ray.init(address=self.address, logging_level=logging.WARNING, log_to_driver=False)
+                    with _stderr_kept_back() as said:  # Ray's retries warn every second (C++, on fd 2)
+                        ray.init(address=self.address, logging_level=logging.WARNING, log_to_driver=False)
                 else:
                     # "local": a new Ray for this sweep, even if a `ray start` cluster runs on this machine
                     ray.init(
@@ -211,7 +220,8 @@ class RayBackend:
                         log_to_driver=False,
                     )
             except (ConnectionError, RuntimeError, ValueError) as exc:
-                raise InputError(f"cannot start or reach Ray: {exc}", file="--address") from None
+                last = f" (Ray's last word: {said[-1][:300]})" if said else ""
+                raise InputError(f"cannot start or reach Ray: {exc}{last}", file="--address") from None
             connected_here = True
         remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(run_task)
         refs = {}
@@ -235,3 +245,81 @@ class RayBackend:
                     pass
             if connected_here:
                 ray.shutdown()
+
+
+@contextlib.contextmanager
+def _stderr_kept_back() -> Iterator[list[str]]:
+    """Standard error (the file descriptor: Ray's C++ core writes to it directly) goes to a scratch
+    file for the block; the list yielded then holds its last line, without the log prefix, for the
+    caller to say in its one line when the block failed."""
+    said: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with tempfile.TemporaryFile() as scratch:
+            os.dup2(scratch.fileno(), 2)
+            try:
+                yield said
+            finally:
+                sys.stderr.flush()
+                os.dup2(saved, 2)
+                scratch.seek(0)
+                lines = [ln.strip() for ln in scratch.read()[-4096:].decode(errors="replace").splitlines()]
+                lines = [ln for ln in lines if ln]
+                if lines:  # "[2026-12-03 17:21:06,774 W 19768 19768] gcs_client.cc:210: what"
+                    said.append(re.sub(r"^\[[^]]*\]\s*\S+:\d+:\s*", "", lines[-1]))
+    finally:
+        os.close(saved)
+
+
+PROBE_TIMEOUT_S = 5.0
+"""How long :func:`probe_ray_address` waits to connect, and then for an answer."""
+
+_H2_HELLO = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + b"\x00\x00\x00\x04\x00\x00\x00\x00\x00"
+"""HTTP/2's connection preface and an empty SETTINGS frame: a gRPC server (Ray's GCS, its client
+server) answers with a SETTINGS frame of its own."""
+
+
+def probe_ray_address(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """Refuse in one line (``--address: error: ...``) an address where no Ray can answer, before
+    ``ray.init``, which retries an unreachable or foreign one for many minutes with a warning
+    every few seconds: a host that does not resolve, a port nobody listens on or that does
+    not answer within ``timeout`` seconds, or that does not speak gRPC (HTTP/2), as Ray's GCS
+    and client server do (not checked with ``RAY_USE_TLS``, gRPC over TLS). ``auto`` and
+    ``local`` are Ray's to find.
+
+    >>> probe_ray_address("bogus")
+    Traceback (most recent call last):
+    ...
+    mitlc.errors.InputError: --address: error: the Ray address 'bogus' is not HOST:PORT, ray://HOST:PORT or auto
+    """
+    if address in ("auto", "local"):
+        return
+    where = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = where.rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise InputError(f"the Ray address {address!r} is not HOST:PORT, ray://HOST:PORT or auto", file="--address")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout) as conn:
+            if os.environ.get("RAY_USE_TLS", "0").lower() not in ("0", "false", ""):
+                return
+            conn.sendall(_H2_HELLO)
+            answer = b""
+            while len(answer) < 9:
+                chunk = conn.recv(9 - len(answer))
+                if not chunk:
+                    break
+                answer += chunk
+    except socket.gaierror as exc:
+        why = f"unknown host {host!r} ({exc.strerror})"
+        raise InputError(f"cannot reach Ray at {address}: {why}", file="--address") from None
+    except TimeoutError:
+        raise InputError(f"cannot reach Ray at {address}: no answer within {timeout:g} s", file="--address") from None
+    except OSError as exc:
+        why = exc.strerror or type(exc).__name__
+        raise InputError(f"cannot reach Ray at {address}: {why.lower()}", file="--address") from None
+    if len(answer) < 9 or answer[3] != 0x04:  # not a SETTINGS frame: no gRPC server there
+        raise InputError(
+            f"cannot reach Ray at {address}: the port answers, but not as Ray does (gRPC)", file="--address"
+        )

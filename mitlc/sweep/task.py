@@ -65,12 +65,17 @@ def run_task(payload: Mapping[str, Any]) -> dict:
         "failing": {},
         "error": None,
     }
-    try:
-        agent.train(int(payload["trials"]))
-    except TrainingError as exc:
-        record["error"] = exc.message
-    else:
-        ro = agent.rollout(agent.evaluation_states())
+    # numpy's overflow warnings from the workers would interleave on the terminal, a line per place and
+    # worker: a task's outcome is its record (a diverged one says so in "error"), as in mitlc train
+    with np.errstate(all="ignore"):
+        try:
+            agent.train(int(payload["trials"]))
+        except TrainingError as exc:
+            record["error"] = exc.message
+            ro = None
+        else:
+            ro = agent.rollout(agent.evaluation_states())
+    if ro is not None:
         verdict = monitor(spec, ro.states, ro.dt, spec.monitor_formula)
         record["success_rate"] = float(np.mean(verdict.satisfied))
         record["final_return"] = float(agent.returns[:, -FINAL_TRIALS:].mean())
