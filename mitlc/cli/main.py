@@ -93,7 +93,11 @@ class _Group(click.Group):
     ) -> Any:
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode, **extra)
-        from mitlc.cli.common import numeric_warnings
+        try:  # numpy loads here: a Ctrl-C while it does is an interruption like any other
+            from mitlc.cli.common import numeric_warnings
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            interrupt.exit_interrupted()
 
         with numeric_warnings() as numeric:
             try:
