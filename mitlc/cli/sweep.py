@@ -180,8 +180,8 @@ def sweep(
         if backend == "ray"
         else LocalBackend(workers, max_retries, on_retry=on_retry)
     )
-    if backend == "ray":
-        RayBackend._import()  # a clear error before anything runs
+    if isinstance(engine, RayBackend):
+        engine.check()  # a clear error before anything runs: Ray installed, and an address where it answers
 
     bar: dict[str, Any] = {}
 

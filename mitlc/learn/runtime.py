@@ -233,12 +233,17 @@ class NetRuntime:
 
         # mixed-radix marking codes: code = sum_s local_index_s * stride_s
         sizes = [len(p) for p in self.subnet_places]
-        big = [math.prod(sizes[s + 1 :]) for s in range(len(sizes))]
-        # past int64 the mixed-radix codes are not used (compact tables or none at all)
-        strides = np.array([b if math.prod(sizes) < 2**62 else 0 for b in big], dtype=np.int64)
+        n_codes = math.prod(sizes)  # a Python int: the product may not fit in int64
+        big = [0] * len(sizes)
+        if n_codes < 2**62:  # past int64 the mixed-radix codes are not used (compact tables or none at all)
+            acc = 1
+            for s in range(len(sizes) - 1, -1, -1):  # suffix products in one pass (500 sub-nets: not 250,000)
+                big[s] = acc
+                acc *= sizes[s]
+        strides = np.array(big, dtype=np.int64)
         self._sizes = sizes
         self._strides = strides
-        self.n_codes = math.prod(sizes)  # a Python int: the product may not fit in int64
+        self.n_codes = n_codes
         self.compact = False  # codes index the reachable markings (_build_compact) instead of mixed radix
         self._place_weight = np.zeros(self.n_places, dtype=np.int64)
         self._place_subnet = np.zeros(self.n_places, dtype=np.intp)

@@ -197,6 +197,12 @@ class RayBackend:
             ) from None
         return ray
 
+    def check(self) -> None:
+        """One line now, before any work, if Ray is not installed or nothing answers at the address."""
+        ray = self._import()
+        if self.address and not ray.is_initialized():
+            probe_ray_address(self.address)
+
     def run(self, payloads: Sequence[dict]) -> Iterator[Outcome]:
         import logging
 
