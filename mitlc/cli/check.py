@@ -23,6 +23,37 @@ each step reads the whole trial so far, :class:`mitlc.petri.timed.TimedState`, s
 the square of the trace's length) or one too large to tabulate (each step evaluates every guard).
 10,000 samples take seconds; a tabulated net steps any trace (one look-up per sample)."""
 
+MAX_STEPPED_WORK = 5_000_000
+"""... and at most this much work: samples x (transitions + 10 x obligation nodes x (1 + samples /
+3000)), what stepping costs (a transition a few microseconds a sample, an obligation node some 30,
+and more as the trial it reads grows). 10,000 samples of ``pendulum/n3_bounded_response`` are 2.3
+million (about 6 s); 101 samples of a net of 73,000 transitions and 22,000 obligation nodes would be
+31 million (two and a half minutes)."""
+
+
+def _stepping_work(rs, n: int) -> int:
+    nodes = sum(len(tn.tree.nodes) for tn in rs.timed)
+    return n * (len(rs.net.transitions) + 10 * nodes * (3000 + n) // 3000)
+
+
+def _refuse_stepping(rs, n: int, why: str) -> None:
+    """One line, if ``n`` samples of the net ``rs`` are more than --net steps one at a time."""
+    if n <= MAX_STEPPED_SAMPLES and _stepping_work(rs, n) <= MAX_STEPPED_WORK:
+        return
+    if n > MAX_STEPPED_SAMPLES:
+        most = f"at most {MAX_STEPPED_SAMPLES:,} samples"
+    else:
+        size = f"{len(rs.net.transitions):,} transitions"
+        if rs.timed:
+            size += f", {sum(len(tn.tree.nodes) for tn in rs.timed):,} obligation nodes"
+        fits = next(m for m in range(n, 0, -1) if _stepping_work(rs, m) <= MAX_STEPPED_WORK or m == 1)
+        most = f"at most {fits:,} samples of this net ({size})"
+    raise InputError(
+        f"the spec's net {why}: --net steps such a net one sample at a time, {most}, and the trace has {n:,} "
+        "(check without --net, or a shorter trace)",
+        file="--net",
+    )
+
 
 def _net_view(spec, tr, dt: float) -> dict:
     """Step the spec's net (violations recorded: the spec's mode, or permanent) over the trace."""
@@ -39,6 +70,9 @@ def _net_view(spec, tr, dt: float) -> dict:
     rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=mode))
     cols = state_columns(spec)
     n = len(tr.t)
+    timed = "has timed obligations (nested intervals), whose steps grow with the trace's length"
+    if rs.timed:  # stepped one sample at a time whatever the tables: refused before they are built
+        _refuse_stepping(rs, n, timed)
     x = np.stack([np.asarray(tr.columns.get(c, np.zeros(n)), dtype=float) for c in cols], axis=1)
     plant = spec.plant
     for i, c in enumerate(cols):
@@ -60,18 +94,10 @@ def _net_view(spec, tr, dt: float) -> dict:
         if k is not None:
             M = _marking_at(rt, codes, k)
             first, violated = float(tr.t[k]), [rs.net.places[i].name for i in idx if M[i]]
-    elif n > MAX_STEPPED_SAMPLES:
-        why = (
-            "has timed obligations (nested intervals), whose steps grow with the trace's length"
-            if rs.timed
-            else f"is too large to tabulate ({len(rs.net.places):,} places, {len(rt.atoms)} propositions)"
-        )
-        raise InputError(
-            f"the spec's net {why}: --net steps such a net one sample at a time, at most "
-            f"{MAX_STEPPED_SAMPLES:,} samples, and the trace has {n:,} (check without --net, or a shorter trace)",
-            file="--net",
-        )
     else:  # the rule, sample by sample
+        if not rs.timed:
+            why = f"is too large to tabulate ({len(rs.net.places):,} places, {len(rt.atoms)} propositions)"
+            _refuse_stepping(rs, n, why)
         M = rt.reset(x[:1])
         for k in range(n):
             if k:
