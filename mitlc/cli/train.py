@@ -617,14 +617,6 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
     _restore_plant(meta, ckpt)
     spec = _load(spec_path) if spec_path is not None else recorded_spec(meta, ckpt)
     agent = load_sacpn(ckpt, meta, spec)
-    bad = [r for r in range(agent.runs) if not (np.isfinite(agent.xi[r]).all() and np.isfinite(agent.theta[r]).all())]
-    if bad:  # a training keeps each run's last finite parameters: these were written by something else
-        runs = ", ".join(map(str, bad[:10])) + (", ..." if len(bad) > 10 else "")
-        raise InputError(
-            f"the parameters of run{'s' if len(bad) > 1 else ''} {runs} are not finite (NaN or inf): no policy to "
-            "roll out (mitlc train keeps a diverged run's last finite parameters)",
-            file=str(ckpt),
-        )
     if starts == "train" and rollouts not in (None, agent.runs):
         raise InputError(
             f"--starts train judges each of the {agent.runs} runs from its own evaluation start: "

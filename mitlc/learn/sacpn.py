@@ -907,10 +907,6 @@ class Sacpn:
             raise InputError(
                 f"checkpoint was trained with reward {meta.get('reward', 'net')}, not {self.rs.options.reward}"
             )
-        for name in ("xi", "theta", "returns"):  # a cast would drop an imaginary part, or fail on text
-            kind = np.asarray(d[name]).dtype
-            if kind.kind not in "fiub":
-                raise InputError(f"checkpoint's '{name}' holds {kind} values; the parameters are real numbers")
         self.xi = np.array(d["xi"], dtype=float)
         self.theta = np.array(d["theta"], dtype=float)
         self.returns = np.array(d["returns"], dtype=float).reshape(self.runs, -1)
