@@ -175,7 +175,7 @@ def main() -> None:
 def kernels(trials: int) -> None:
     """The numpy trial against the fused kernel (kernel = numba) in this process, P1 and P4 at
     R = 1 and 30, best of 3 each, and the kernel's scaling in R on P1 (printed, never asserted)."""
-    from mitlc.learn.kernel import numba_available
+    from mitlc.learn.sacpn.kernel import numba_available
 
     if not numba_available():
         print("numba is not installed (pip install 'mitlc[fast]'): nothing to compare")

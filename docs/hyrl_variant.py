@@ -33,8 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitlc.errors import MitlError  # noqa: E402
-from mitlc.learn.hyrl import HybridLearner, HyrlSettings  # noqa: E402
-from mitlc.learn.hyrl_eval import evaluate  # noqa: E402
+from mitlc.learn.hyrl import HybridLearner, HyrlSettings, evaluate  # noqa: E402
 from mitlc.learn.settings import parse_assignments  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
 

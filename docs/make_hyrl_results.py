@@ -34,8 +34,7 @@ sys.path.insert(0, str(ROOT))
 from mitlc.cli.hybrid import SMALL_STEP, rollout_mode_figure  # noqa: E402
 from mitlc.fileio import atomic_write  # noqa: E402
 from mitlc.hybrid import compile_requirements, render_bytes  # noqa: E402
-from mitlc.learn.hyrl import HybridLearner, HyrlSettings  # noqa: E402
-from mitlc.learn.hyrl_eval import HANDOVER_SIGMA, brake_bound, compose, evaluate, train_handover  # noqa: E402
+from mitlc.learn.hyrl import HANDOVER_SIGMA, HybridLearner, HyrlSettings, brake_bound, compose, evaluate, train_handover  # noqa: E402
 from mitlc.learn.plots import learning_curve, png_bytes  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
 
@@ -214,7 +213,7 @@ def main() -> None:
             time.perf_counter() - start,
             note="beyond the thesis (docs/hyrl.md): E_Mp, S and P of the overshoot learner trained "
             f"on, from the states the rise-time policies hand over, exploring with {HANDOVER_SIGMA} N "
-            "(`mitlc.learn.hyrl_eval.HANDOVER_SIGMA`); I and E_tr as composed",
+            "(`mitlc.learn.hyrl.HANDOVER_SIGMA`); I and E_tr as composed",
         )
     )
     rows[-1].update(bound_rates)  # the same handovers: the same bound
@@ -471,7 +470,7 @@ def markdown(d: dict, args) -> str:
             extra += (
                 f"; braking at the bound from the state handed over to E_Mp would avoid the overshoot "
                 f"from {pct(r['brake_bound_state_rate'])} of the states and from all 50 in "
-                f"{pct(r['brake_bound_success_rate'])} of the runs (`mitlc.learn.hyrl_eval.brake_bound`: the most "
+                f"{pct(r['brake_bound_success_rate'])} of the runs (`mitlc.learn.hyrl.brake_bound`: the most "
                 "any overshoot policy could do with these rise-time handovers)"
             )
         lines.append(f"- `{Path(r['spec']).name}`, {r['method']}: {parts}{extra}.")

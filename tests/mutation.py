@@ -46,7 +46,7 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
         ],
     ),
     "runtime": (
-        "mitlc/learn/runtime.py",
+        "mitlc/runtime/netruntime.py",
         ["test_runtime.py", "test_net_vs_monitor.py", "test_sacpn.py", "test_sparse.py"],
     ),
     "reward": (

@@ -189,7 +189,7 @@ def test_unknown_conjunction_reading() -> None:
 
 
 def _stepped(rs, qs, dt=0.5):
-    from mitlc.learn.runtime import NetRuntime
+    from mitlc.runtime import NetRuntime
 
     x = np.array([[[q, 0.0] for q in qs]])
     rt = NetRuntime(rs, ("q", "qdot"), dt=dt, steps=len(qs) - 1)

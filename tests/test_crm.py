@@ -12,8 +12,8 @@ gym = pytest.importorskip("gymnasium")
 from mitlc.crm import CounterfactualReplayBuffer, counterfactual_codes  # noqa: E402
 from mitlc.errors import InputError  # noqa: E402
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
-from mitlc.learn.runtime import NetRuntime  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
+from mitlc.runtime import NetRuntime  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
 
 

@@ -134,10 +134,10 @@ def test_nested_iff_is_refused_before_its_normal_form_explodes(tmp_path, trace):
 
 def _reference_net_view(spec, tr, dt):
     """What check --net reported before: the net stepped one sample at a time."""
-    from mitlc.learn.runtime import NetRuntime
     from mitlc.monitor.offline import state_columns
     from mitlc.petri import reward as R
     from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.runtime import NetRuntime
 
     mode = None if spec.option("violations") != "off" else "permanent"
     rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=mode))

@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mitlc.learn.runtime import NetRuntime
 from mitlc.monitor.offline import compile_pred
 from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.runtime import NetRuntime
 from mitlc.spec import predicates as P
 from mitlc.spec.grades import Grader
 from mitlc.spec.parse import load_spec, parse_spec

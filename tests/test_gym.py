@@ -19,9 +19,9 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 from mitlc.errors import InputError, MitlError  # noqa: E402
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
-from mitlc.learn.runtime import NetRuntime  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.plants.base import wrap_angle  # noqa: E402
+from mitlc.runtime import NetRuntime  # noqa: E402
 from mitlc.spec.parse import load_spec, parse_spec  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -11,8 +11,17 @@ import pytest
 
 from mitlc.errors import TrainingError
 from mitlc.hybrid.criteria import check
-from mitlc.learn.hyrl import HybridLearner, HyrlSettings, load_learner, train_hybrid
-from mitlc.learn.hyrl_eval import HANDOVER_SIGMA, brake_bound, compose, evaluate, train_handover
+from mitlc.learn.hyrl import (
+    HANDOVER_SIGMA,
+    HybridLearner,
+    HyrlSettings,
+    brake_bound,
+    compose,
+    evaluate,
+    load_learner,
+    train_handover,
+    train_hybrid,
+)
 from mitlc.spec.parse import load_spec, parse_spec
 
 OVERSHOOT = """plant mass-damper

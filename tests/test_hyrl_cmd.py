@@ -171,7 +171,7 @@ def test_compose_command_runs_policies_trained_separately(spec_dir, tmp_path):
 def test_simulate_judges_hyrl_policies_alone_and_composed(spec_dir, tmp_path):
     from mitlc.cli.train import simulate
     from mitlc.hybrid.criteria import measure
-    from mitlc.learn.hyrl_eval import compose
+    from mitlc.learn.hyrl import compose
     from mitlc.spec.parse import load_spec
 
     md = spec_dir / "mass_damper"

@@ -11,11 +11,11 @@ from hypothesis import strategies as st
 from strategies import formulas, grid_intervals
 
 from mitlc.errors import SpecError, SpecSyntaxError
-from mitlc.learn.runtime import NetRuntime
 from mitlc.monitor.offline import monitor
 from mitlc.petri.compile import compile_spec
 from mitlc.petri.export import to_text
 from mitlc.petri.render import to_digraph
+from mitlc.runtime import NetRuntime
 from mitlc.spec import ast as A
 from mitlc.spec.parse import parse_formula, parse_spec
 

@@ -1,4 +1,4 @@
-"""SACPN's fused trial kernel (mitlc.learn.kernel) against the numpy trial, the reference.
+"""SACPN's fused trial kernel (mitlc.learn.sacpn.kernel) against the numpy trial, the reference.
 
 Exactness: to the bit (returns, actor and critic parameters), no tolerance, wherever
 numpy's float64 sin/cos/exp are the C library's (numba's are): both paths sum in numpy's
@@ -27,12 +27,12 @@ from hypothesis import strategies as st
 from numerics import LIBM, same
 
 from mitlc.errors import TrainingError
-from mitlc.learn import kernel as fk
-from mitlc.learn.runtime import compile_predicate
 from mitlc.learn.sacpn import Sacpn, SacpnSettings
+from mitlc.learn.sacpn import kernel as fk
 from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.plants import PLANTS, make_integrator
 from mitlc.plants.base import pairwise_sum
+from mitlc.runtime.atoms import compile_atoms, compile_predicate, scalar_atoms
 from mitlc.spec import predicates as P
 from mitlc.spec.parse import load_spec, parse_spec
 
@@ -213,7 +213,7 @@ def test_atom_code_of_the_generated_predicates() -> None:
     rs = rs_of("pendulum/p4_alternate")
     agent = Sacpn(rs, SacpnSettings(kernel="numpy"))
     rt = agent.runtime
-    atoms = fk.compile_atoms(rt._preds, rt._columns, fk.identity)
+    atoms = compile_atoms(rt.preds, rt.columns, fk.identity)
     x = np.random.default_rng(2).uniform([-np.pi, -20], [np.pi, 20], (500, 2))
     assert [atoms(row) for row in x] == list(rt.atom_code(x))
 
@@ -249,7 +249,7 @@ _STATE = st.floats(allow_nan=False, allow_infinity=False, width=64) | st.sampled
 def test_scalar_atoms_are_the_numpy_atom_code(preds, states) -> None:
     """The wrapper's one-sample atom code (plain Python floats) gives numpy's truths, division by
     zero, square roots of negatives, overflow and signed zeros included."""
-    atoms = fk.scalar_atoms(preds, _COLS)
+    atoms = scalar_atoms(preds, _COLS)
     compiled = [compile_predicate(p, _COLS) for p in preds]
     x = np.array(states, dtype=float)
     with np.errstate(all="ignore"):

@@ -28,11 +28,12 @@ ALLOWED: dict[str, set[str]] = {
     "petri": BASE | {"plants", "spec"},
     "hybrid": BASE | {"plants", "spec"},
     "monitor": BASE | {"npzfile", "plants", "spec"},
-    "learn": BASE | {"cachefiles", "npzfile", "plants", "spec", "petri", "hybrid"},
+    "runtime": BASE | {"spec", "petri"},
+    "learn": BASE | {"cachefiles", "npzfile", "plants", "spec", "petri", "hybrid", "runtime"},
     "sweep": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn"},
-    "gym": BASE | {"plants", "spec", "petri", "monitor", "learn"},
-    "crm": BASE | {"plants", "spec", "petri", "monitor", "learn", "gym"},
-    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn", "sweep", "gym", "crm"},
+    "gym": BASE | {"plants", "spec", "petri", "monitor", "runtime", "learn"},
+    "crm": BASE | {"plants", "spec", "petri", "monitor", "runtime", "learn", "gym"},
+    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "runtime", "learn", "sweep", "gym", "crm"},
 }
 """Stage -> the stages it may import."""
 
@@ -130,5 +131,61 @@ def test_every_stage_ships_in_the_wheel() -> None:
     """pyproject.toml lists packages explicitly: a new subpackage must be added there."""
     tomllib = pytest.importorskip("tomllib")  # Python 3.11+
     listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
-    present = {"mitlc"} | {f"mitlc.{p.parent.name}" for p in PACKAGE.glob("*/__init__.py")}
+    present = {".".join(("mitlc", *p.parent.relative_to(PACKAGE).parts)) for p in PACKAGE.rglob("__init__.py")}
     assert present <= listed, present - listed
+
+
+def private_names(folder: Path) -> set[str]:
+    """Underscore names a stage keeps to itself: its modules' private functions, classes and
+    module-level names, and the private attributes its classes set or define (dunders aside)."""
+    names: set[str] = set()
+    for path in folder.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+                name = node.name
+            elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "self":
+                name = node.attr
+            elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                name = node.id
+            else:
+                continue
+            if name.startswith("_") and not name.startswith("__"):
+                names.add(name)
+    return names
+
+
+RUNTIME_PRIVATE = private_names(PACKAGE / "runtime")
+
+
+def private_reads(path: Path, private: set[str], stage: str) -> list[str]:
+    """Where ``path`` imports an underscore name of ``mitlc.<stage>`` or reads one of ``private`` as an
+    attribute of anything but ``self``/``cls`` (its own class's attributes may share a name)."""
+    bad = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith(f"mitlc.{stage}"):
+            bad += [f"line {node.lineno}: imports {a.name}" for a in node.names if a.name.startswith("_")]
+        elif (
+            isinstance(node, ast.Attribute)
+            and node.attr in private
+            and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))
+        ):
+            bad.append(f"line {node.lineno}: reads .{node.attr}")
+    return bad
+
+
+@pytest.mark.parametrize(
+    "path",
+    [p for p in modules() if stage_of_file(p) != "runtime"],
+    ids=lambda p: str(p.relative_to(PACKAGE)),
+)
+def test_no_module_reads_the_runtimes_private_names(path: Path) -> None:
+    """The runtime is used through its public names only (``NetRuntime``'s methods and attributes)."""
+    bad = private_reads(path, RUNTIME_PRIVATE, "runtime")
+    assert not bad, f"{path.relative_to(PACKAGE.parent)}:\n" + "\n".join(bad)
+
+
+def test_the_private_name_check_sees_a_read(tmp_path: Path) -> None:
+    f = tmp_path / "m.py"
+    f.write_text("from mitlc.runtime.tables import _x\ndef f(rt):\n    return rt._radix, self._radix\n")
+    assert "_radix" in RUNTIME_PRIVATE
+    assert private_reads(f, RUNTIME_PRIVATE, "runtime") == ["line 1: imports _x", "line 3: reads ._radix"]

@@ -12,9 +12,9 @@ import strategies
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mitlc.learn.runtime import NetRuntime
 from mitlc.monitor.offline import monitor
 from mitlc.petri.compile import CompileOptions, compile_spec
+from mitlc.runtime import NetRuntime
 from mitlc.spec import ast as A
 from mitlc.spec.parse import parse_spec
 

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from mitlc.learn.runtime import NetRuntime
 from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.plants.base import PLANTS, wrap_angle
+from mitlc.runtime import NetRuntime
 from mitlc.spec.parse import parse_spec
 
 P1 = """
@@ -296,7 +296,7 @@ def test_pendulum_input_saturates_and_velocity_is_bounded():
 
 
 def test_compiled_predicates_agree_with_the_reference():
-    from mitlc.learn.runtime import compile_predicate
+    from mitlc.runtime.atoms import compile_predicate
     from mitlc.spec import predicates as Pr
 
     spec = parse_spec(
@@ -320,7 +320,7 @@ def _many_eventuallys(n: int, props: int = 1) -> str:
 def test_compact_tables_follow_the_direct_rule() -> None:
     """Twelve bounded eventuallys over two propositions: 2^12 x 13 x 4 product markings, too many to
     tabulate; the reachable ones are tabulated instead and step exactly as the rule does."""
-    from mitlc.learn import runtime as RT
+    from mitlc.runtime import tables as RT
 
     rs = compile_spec(parse_spec(_many_eventuallys(12, props=2)))
     rt = NetRuntime(rs)
@@ -444,7 +444,7 @@ def test_every_table_mode_steps_rewards_and_charges_alike(spec: str, violations:
     evaluated on markings, none at all), step, step_code, reward_code and charge_code give
     what the full tables give, which are what the reward and charge expressions say on the
     stepped markings."""
-    from mitlc.learn import runtime as RT
+    from mitlc.runtime import tables as RT
     from mitlc.spec.parse import load_spec
 
     if spec.endswith("eventuallys"):

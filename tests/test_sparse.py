@@ -12,10 +12,10 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from mitlc.errors import CompileError, MitlError
-from mitlc.learn.runtime import NetRuntime
 from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.petri.net import Incidence, Net
 from mitlc.petri.regions import state_groups
+from mitlc.runtime import NetRuntime
 from mitlc.spec import predicates as P
 from mitlc.spec.parse import parse_spec
 
@@ -100,7 +100,7 @@ def test_500_disjoint_propositions_compile_to_one_sparse_region_net() -> None:
     assert net.successors(region.places[3]) == tuple(p for p in region.places if p != region.places[3])
     # the runtime steps it by the region that holds: x = 7.5 is a_7, x = -1 none of them
     rt = NetRuntime(rs, state_names=("x",))
-    assert [s for s, _ in rt._regions] == [net.subnets.index(region)]
+    assert [s for s, _ in rt.rule.regions] == [net.subnets.index(region)]
     M = rt.reset(np.array([[0.5], [7.5]]))
     M1 = rt.step_direct(M, np.array([[-1.0], [499.2]]), 0.1)
     here = [net.places[region.places[int(np.argmax(M1[r, list(region.places)]))]].name for r in range(2)]
@@ -205,14 +205,14 @@ def test_region_stepping_gives_the_markings_of_the_scanning_rule(spec_opts, stat
     rt = NetRuntime(rs)
     # every region net with two places or more is stepped by its region
     multi = [s for s, sub in enumerate(rs.net.subnets) if sub.role == "region" and len(sub.places) > 1]
-    assert [s for s, _ in rt._regions] == multi
+    assert [s for s, _ in rt.rule.regions] == multi
     rng = np.random.default_rng(seed)
     x = np.array(states, dtype=float)[None].repeat(4, axis=0)
     x[1:] = x[1:][:, rng.permutation(len(states))]  # four runs, the same states in other orders
     M = rt.reset(x[:, 0])
     for k in range(len(states) - 1):
         tau = 0.5 * (k + 1) + (0.25 if k % 3 == 0 else 0.0)
-        want = rt._step_scanning(M, x[:, k + 1], tau)
+        want = rt.step_scanning(M, x[:, k + 1], tau)
         got = rt.step_direct(M, x[:, k + 1], tau)
         np.testing.assert_array_equal(got, want)
         if rt.tables is not None and not rt.timed:

@@ -23,7 +23,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mitlc.monitor.offline import monitor
-from mitlc.petri.timed import FAILED, FALSE, MET, PENDING, TRUE, ObligationTree, TimedState
+from mitlc.petri.timed import FAILED, FALSE, MET, PENDING, TRUE, ObligationTree
+from mitlc.runtime.obligations import TimedState
 from mitlc.spec import ast as A
 from mitlc.spec.parse import parse_spec
 from mitlc.spec.passes import normal_form
@@ -170,9 +171,9 @@ timed_roots = (
 def test_compiled_timed_parts_end_where_the_monitor_does(f: A.Formula, codes: list[int]) -> None:
     """Every timed part of a compiled random formula (a conjunct reached through & and weights) ends in
     met exactly when the monitor says it holds, with --violations permanent charging its failure."""
-    from mitlc.learn.runtime import NetRuntime
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.petri.reading import flatten, strip_weights
+    from mitlc.runtime import NetRuntime
 
     spec = parse_spec(PENDULUM + f"formula {f}\n")
     rs = compile_spec(spec, CompileOptions(violations="permanent"))

@@ -114,8 +114,8 @@ def test_spec_option() -> None:
 
 
 # ----------------------------------------------------------------- the ordering guarantee
-from mitlc.learn.runtime import NetRuntime  # noqa: E402
 from mitlc.monitor.offline import monitor  # noqa: E402
+from mitlc.runtime import NetRuntime  # noqa: E402
 from mitlc.spec.parse import parse_formula  # noqa: E402
 
 DT, STEPS = 0.03, 100

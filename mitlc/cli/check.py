@@ -19,7 +19,7 @@ __all__ = ["check"]
 
 MAX_STEPPED_SAMPLES = 10_000
 """Most samples ``check --net`` steps one at a time: a net with timed obligations (nested intervals;
-each step reads the whole trial so far, :class:`mitlc.petri.timed.TimedState`, so time grows with
+each step reads the whole trial so far, :class:`mitlc.runtime.obligations.TimedState`, so time grows with
 the square of the trace's length) or one too large to tabulate (each step evaluates every guard).
 10,000 samples take seconds; a tabulated net steps any trace (one look-up per sample)."""
 
@@ -59,12 +59,12 @@ def _net_view(spec, tr, dt: float) -> dict:
     """Step the spec's net (violations recorded: the spec's mode, or permanent) over the trace."""
     import numpy as np
 
-    from mitlc.learn.runtime import NetRuntime
     from mitlc.monitor.offline import state_columns
     from mitlc.petri import reward as R
     from mitlc.petri import timed as T
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.plants.base import wrap_angle
+    from mitlc.runtime import NetRuntime
 
     mode = None if spec.option("violations") != "off" else "permanent"
     rs = compile_spec(spec, CompileOptions.from_spec(spec, violations=mode))

@@ -135,7 +135,7 @@ def metrics_of(learner, ev, wall_s: float) -> dict:
     ``stable_fraction`` of the step from the set-point); ``criteria_success_rate``
     without the second condition.
     """
-    from mitlc.learn.hyrl_eval import STABLE_FRACTION
+    from mitlc.learn.hyrl import STABLE_FRACTION
 
     A = learner.automaton
     step = np.abs(ev.q0 - A.setpoint)
@@ -233,7 +233,7 @@ def train_hybrid_cli(
 
 def _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots) -> dict:
     from mitlc.cli.progress import Progress
-    from mitlc.learn.hyrl_eval import evaluate
+    from mitlc.learn.hyrl import evaluate
     from mitlc.learn.plots import learning_curve, png_bytes
 
     out = outset.out
@@ -373,7 +373,7 @@ def simulate_hybrid(
     spec's set (``starts="fresh"``), or every run from the evenly spaced initial states ``mitlc
     train`` judged it on (``"train"``), judged by the checker.  One policy runs on its own automaton
     (or on ``--spec``'s); several run composed on ``--spec``'s combined automaton (section 3-3-3)."""
-    from mitlc.learn.hyrl_eval import _judge, compose, evaluate, stabilised
+    from mitlc.learn.hyrl.evaluation import _judge, compose, evaluate, stabilised
     from mitlc.learn.plots import png_bytes
 
     learners = _load_learners(policy_dirs)
@@ -502,7 +502,7 @@ def compose_cmd(
     handover_sigma: float | None = None,
 ) -> None:
     """Run SPEC's combined automaton with policies learned separately (thesis section 3-3-3)."""
-    from mitlc.learn.hyrl_eval import HANDOVER_SIGMA, brake_bound, compose, train_handover
+    from mitlc.learn.hyrl import HANDOVER_SIGMA, brake_bound, compose, train_handover
     from mitlc.learn.plots import png_bytes
     from mitlc.spec.parse import load_spec
 

@@ -1,24 +1,33 @@
-"""Reward system and plant to policy: the runtime and the learners.
+"""Reward system and plant to policy: the learners.
 
-In: a :class:`mitlc.petri.RewardSystem` or a :class:`mitlc.hybrid.HybridAutomaton`,
-and a :class:`mitlc.plants.Plant`. Out: trained policies with their learning curves
-and rollouts. :class:`NetRuntime` steps the net and its reward alongside a batch of
-plant states (:mod:`mitlc.learn.runtime`); :class:`Sacpn` is Algorithm 1
-(:mod:`mitlc.learn.sacpn`); :class:`HybridLearner` is HyRL, one actor-critic per
-mode (:mod:`mitlc.learn.hyrl`, judged and composed by :mod:`mitlc.learn.hyrl_eval`); both use the RBF features of
-:mod:`mitlc.learn.features` and settings read by :mod:`mitlc.learn.settings`;
-:mod:`mitlc.learn.plots` draws what they produce.
+In: a :class:`mitlc.petri.RewardSystem` (stepped by :class:`mitlc.runtime.NetRuntime`) or a
+:class:`mitlc.hybrid.HybridAutomaton`, and a :class:`mitlc.plants.Plant`. Out: trained policies
+with their learning curves and rollouts. One folder per learner: :mod:`mitlc.learn.sacpn`
+(:class:`Sacpn`, Algorithm 1, and its fused kernel) and :mod:`mitlc.learn.hyrl`
+(:class:`HybridLearner`, HyRL, one actor-critic per mode, judged and composed by
+:mod:`mitlc.learn.hyrl.evaluation`). What both use lies here: the RBF features
+(:mod:`~mitlc.learn.features`), settings (:mod:`~mitlc.learn.settings`), checkpoints
+(:mod:`~mitlc.learn.checkpoint`), saved policies (:mod:`~mitlc.learn.policy`), the disk cache of
+compiled kernels (:mod:`~mitlc.learn.jitcache`) and figures (:mod:`~mitlc.learn.plots`).
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.cachefiles`,
-:mod:`mitlc.npzfile`, :mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.hybrid` (never
-the monitor: the learners are judged by it, from a later stage).
+:mod:`mitlc.npzfile`, :mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.hybrid`,
+:mod:`mitlc.runtime` (never the monitor: the learners are judged by it, from a later stage).
 """
 
 from mitlc.learn.features import Axis, RbfFeatures
-from mitlc.learn.hyrl import HybridLearner, HybridRollout, HyrlSettings, load_learner
-from mitlc.learn.hyrl_eval import ComposedController, Evaluation, compose, evaluate
-from mitlc.learn.runtime import NetRuntime
+from mitlc.learn.hyrl import (
+    ComposedController,
+    Evaluation,
+    HybridLearner,
+    HybridRollout,
+    HyrlSettings,
+    compose,
+    evaluate,
+    load_learner,
+)
 from mitlc.learn.sacpn import Rollout, Sacpn, SacpnSettings
+from mitlc.runtime import NetRuntime  # re-exported: mitlc.learn.NetRuntime predates mitlc.runtime
 
 __all__ = [
     "Axis",

@@ -228,7 +228,7 @@ def _settings(v: Any, kind: str) -> None:
         raise _Bad("settings", f"is {_shown(v)}, not an object")
     cls: Any
     if kind == "hyrl":
-        from mitlc.learn.hyrl import _LEGACY_SETTINGS, HyrlSettings
+        from mitlc.learn.hyrl.hyrl import _LEGACY_SETTINGS, HyrlSettings
 
         cls, v = HyrlSettings, {**_LEGACY_SETTINGS, **v}
     else:

@@ -125,7 +125,7 @@ class Plant:
     of :func:`make_integrator` for *one* copy, as plain Python over scalars that numba can
     compile: ``step(x, u, consts, scratch)`` moves ``x (n,)`` in place, bit for bit as the
     batched step does (``scratch``: ``work`` floats). ``jit`` compiles the functions
-    ``step`` calls (the identity when the fused SACPN kernel, :mod:`mitlc.learn.kernel`,
+    ``step`` calls (the identity when the fused SACPN kernel, :mod:`mitlc.learn.sacpn.kernel`,
     runs uncompiled). A plant without one trains on the numpy path.
     :func:`rk4_kernel_step` builds it from an ``ode``."""
 
@@ -284,7 +284,7 @@ def _pairwise_block(a: np.ndarray, lo: int, n: int) -> float:
 @functools.cache
 def pairwise_sum_for(jit: Callable[[Callable], Callable]) -> Callable[[np.ndarray, int, int], float]:
     """:func:`pairwise_sum` with it and its helper compiled by ``jit`` (numba's, in
-    :mod:`mitlc.learn.kernel`; the identity gives the plain-Python one). Kept per ``jit``."""
+    :mod:`mitlc.learn.sacpn.kernel`; the identity gives the plain-Python one). Kept per ``jit``."""
     block = jit(_pairwise_block)
 
     def pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:

@@ -63,7 +63,6 @@ from mitlc.fileio import npz_bytes, save_npz
 from mitlc.learn.checkpoint import load_state, read_checkpoint
 from mitlc.learn.checkpoint import read_meta as _read_meta
 from mitlc.learn.features import RbfFeatures, default_rbf
-from mitlc.learn.runtime import NetRuntime
 from mitlc.learn.settings import (
     Settings,
     check_fraction,
@@ -84,6 +83,8 @@ from mitlc.limits import (
 )
 from mitlc.petri.compile import RewardSystem
 from mitlc.plants.base import Plant
+from mitlc.runtime import NetRuntime
+from mitlc.runtime.atoms import atom_source, compile_atoms
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
 
@@ -165,11 +166,11 @@ class SacpnSettings(Settings):
 
     kernel: str = "auto"
     """How a trial is computed: ``numpy`` (the reference: vectorised over the runs),
-    ``numba`` (the fused trial kernel of :mod:`mitlc.learn.kernel`, compiled; needs
+    ``numba`` (the fused trial kernel of :mod:`mitlc.learn.sacpn.kernel`, compiled; needs
     ``mitlc[fast]``), ``auto`` (numba when installed, else numpy). Both give the same
     returns and parameters to the bit where numpy's float64 sin/cos/exp are the C
     library's (x86-64 up to AVX2; on AVX-512 CPUs within about 1e-13, see
-    :mod:`mitlc.learn.kernel`; tested); problems outside the kernel's scope
+    :mod:`mitlc.learn.sacpn.kernel`; tested); problems outside the kernel's scope
     (environments, user plants without ``kernel_step``, timed obligations, untabulated
     rewards) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
@@ -426,7 +427,7 @@ class Sacpn:
     def _choose_kernel(self) -> None:
         """Pick the trial's path (``settings.kernel``): :attr:`kernel` is ``numpy`` or
         ``numba``, :attr:`kernel_reason` why numpy where the fused kernel was not taken."""
-        from mitlc.learn import kernel as fk
+        from mitlc.learn.sacpn import kernel as fk
 
         want = self.settings.kernel
         self.kernel, self.kernel_reason = "numpy", "kernel = numpy" if want == "numpy" else None
@@ -446,19 +447,19 @@ class Sacpn:
         self.kernel = "numba"
 
     def fused_trial(self, jit: Callable) -> Callable[[], np.ndarray]:
-        """One trial by the fused kernel (:mod:`mitlc.learn.kernel`) compiled by ``jit`` (the
+        """One trial by the fused kernel (:mod:`mitlc.learn.sacpn.kernel`) compiled by ``jit`` (the
         identity runs it as plain Python: the test that it is :meth:`_trial_numpy`, bit for bit).
         Compiled kernels are kept per plant step and predicates for the process."""
-        from mitlc.learn import kernel as fk
+        from mitlc.learn.sacpn import kernel as fk
 
         plant, rt = self.plant, self.runtime
         assert plant.kernel_step is not None and rt.tables is not None and rt.tables.reward is not None
         plain_step, pc, nwork = plant.kernel_step(plant, self.params, fk.identity)  # pc, nwork: whatever jit
-        key = (jit, plant.name, plant.kernel_step, len(plant.state), fk.atom_source(rt._preds, rt._columns))
+        key = (jit, plant.name, plant.kernel_step, len(plant.state), atom_source(rt.preds, rt.columns))
         trial = _KERNELS.get(key)
         if trial is None:
             if jit is fk.identity or jit is fk.jit:
-                plain = fk.trial_kernel(plain_step, fk.compile_atoms(rt._preds, rt._columns, fk.identity), fk.identity)
+                plain = fk.trial_kernel(plain_step, compile_atoms(rt.preds, rt.columns, fk.identity), fk.identity)
                 if jit is fk.identity:
                     trial = plain
                 else:  # compiled once per machine, through the disk cache
@@ -467,7 +468,7 @@ class Sacpn:
                     trial = jitcache.load(plain)
             if trial is None:  # compiled in memory, for this process
                 step = plant.kernel_step(plant, self.params, jit)[0]
-                trial = fk.trial_kernel(step, fk.compile_atoms(rt._preds, rt._columns, jit), jit)
+                trial = fk.trial_kernel(step, compile_atoms(rt.preds, rt.columns, jit), jit)
             _KERNELS[key] = trial
         self._kernel_fn = trial  # the compiled (or plain) trial itself, for inspection
         feats = self.features

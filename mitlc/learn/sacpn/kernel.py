@@ -1,0 +1,284 @@
+"""SACPN's fused trial kernel: one compiled loop over the runs and steps of a trial.
+
+:meth:`mitlc.learn.sacpn.Sacpn._trial` is the reference: about forty numpy calls
+per step on ``(R, places, features)`` arrays, where at ``R = 30`` the interpreter's
+overhead dominates. :func:`trial_kernel` builds the same trial as *plain Python*
+over explicit loops (runs outer, steps inner, features innermost) and compiles it
+with numba (``nopython``, ``fastmath=False``: IEEE order, no fused multiply-adds)
+when numba is installed (``pip install mitlc[fast]``).
+
+How the two are kept in step
+----------------------------
+There is one algorithm written twice, vectorised and scalar, and nothing may drift:
+
+* the kernel is plain Python, so ``tests/test_kernel.py`` runs it *uncompiled*
+  (``jit`` the identity) on small problems and checks its returns and parameters
+  equal the numpy trial's **to the bit**; a change to one that the other does not
+  mirror fails that test, with or without numba installed;
+* the compiled kernel is checked the same way on P1..P5 and a mass-damper spec;
+* the plant's physics is written once (``ode`` of :mod:`mitlc.plants`, or the
+  pendulum's fused constants) and each plant's :attr:`~mitlc.plants.base.Plant.kernel_step`
+  is tested bit for bit against the batched step;
+* every sum is numpy's pairwise ``add.reduce`` order (:func:`~mitlc.plants.base.pairwise_sum_for`):
+  the numpy trial sums its dot products with ``add.reduce``, not BLAS (whose order
+  depends on the CPU), and the kernel repeats that order;
+* numba's ``sin``, ``cos`` and ``exp`` are the C library's, and so are numpy's float64
+  ones on x86-64 up to AVX2. On a CPU with AVX-512, numpy uses its own SIMD code, which
+  rounds some results differently in the last place: there the two paths agree to about
+  1e-13 of the parameters' size after a few trials, not to the bit (the tests check the
+  bits with numpy held to its baseline, ``NPY_DISABLE_CPU_FEATURES``, and a tolerance
+  otherwise).
+
+Scope: ODE plants with a ``kernel_step``, RBF features without warped axes, nets
+whose transitions and rewards are fully tabulated (no timed obligations). The
+predicates are compiled from their syntax trees (data, never text) to Python
+source by :func:`mitlc.runtime.atoms.atom_source`. Anything else trains on the numpy path
+(:func:`unsupported` says why).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from mitlc.plants.base import pairwise_sum_for
+
+__all__ = ["numba_available", "jit", "identity", "trial_kernel", "rbf_kernel", "unsupported"]
+
+
+def numba_available() -> bool:
+    """True when numba can be imported (``mitlc[fast]``)."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def jit(fn: Callable) -> Callable:
+    """``fn`` compiled by numba in nopython mode, IEEE order kept (no fastmath), numpy's
+    error model (a division by zero gives inf or NaN, as in the numpy trial)."""
+    import numba
+
+    return numba.njit(fastmath=False, error_model="numpy", nogil=True)(fn)
+
+
+def identity(fn: Callable) -> Callable:
+    """The uncompiled kernel's ``jit``."""
+    return fn
+
+
+# ---------------------------------------------------------------- features and the trial
+
+
+def rbf_kernel(jit_fn: Callable) -> Callable:
+    """``rbf(x, counts, periodic, lo, hi, k, centres, g, phi)``: :class:`~mitlc.learn.features.RbfFeatures`
+    of one state into ``phi``, each axis's kernels in ``g`` (the same operations in the same order)."""
+    psum = pairwise_sum_for(jit_fn)
+
+    def rbf(x, counts, periodic, lo, hi, k, centres, g, phi):
+        size = 1
+        phi[0] = 1.0
+        first = True
+        for i in range(counts.shape[0]):
+            n = counts[i]
+            if n == 1:
+                continue
+            z = x[i]
+            if periodic[i]:  # exp(2k cos(z - c) - 2k)
+                k2 = 2.0 * k[i]
+                for j in range(n):
+                    g[i, j] = np.exp(np.cos(z - centres[i, j]) * k2 - k2)
+            else:  # exp(-k (z - c)^2), z clipped
+                zi = np.minimum(np.maximum(z, lo[i]), hi[i])
+                mk = -k[i]
+                for j in range(n):
+                    d = zi - centres[i, j]
+                    g[i, j] = np.exp(d * mk * d)
+            s = psum(g[i], 0, n)
+            for j in range(n):
+                g[i, j] = g[i, j] / s
+            if first:
+                for j in range(n):
+                    phi[j] = g[i, j]
+                first = False
+            else:  # phi[a n + b] = phi[a] g[b], in place from the end
+                for a in range(size - 1, -1, -1):
+                    pa = phi[a]
+                    for b in range(n - 1, -1, -1):
+                        phi[a * n + b] = pa * g[i, b]
+            size *= n
+
+    return jit_fn(rbf)
+
+
+def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Callable:
+    """The fused trial for one plant step and one atom-code function, compiled by ``jit_fn``.
+
+    ``trial(x, noise, code0, xi, theta, ret, next_code, clock, reward_tab, reward_full,
+    marked, marked_c, pen, pen_left, pc, fc..., scalars, flags)`` runs every run's
+    steps of Algorithm 1 as :meth:`~mitlc.learn.sacpn.Sacpn._trial`'s ``plain``
+    branch does, updating ``x``, ``xi``, ``theta`` and ``ret`` in place.
+    """
+    psum = pairwise_sum_for(jit_fn)
+    rbf = rbf_kernel(jit_fn)
+
+    def dot(w, rows, K, phi, F, prod, tk):
+        # sum over the K marked rows of w . phi, each sum and the sum over rows pairwise
+        for j in range(K):
+            row = rows[j]
+            for f in range(F):
+                prod[f] = w[row, f] * phi[f]
+            tk[j] = psum(prod, 0, F)
+        return psum(tk, 0, K)
+
+    dot_j = jit_fn(dot)
+
+    def trial(
+        X,
+        noise,
+        code0,
+        xi,
+        theta,
+        ret,
+        next_code,
+        clock,
+        reward_tab,
+        reward_full,
+        marked,
+        marked_c,
+        pen,
+        pen_left,
+        pc,
+        nwork,
+        counts,
+        periodic,
+        lo,
+        hi,
+        kw,
+        centres,
+        gamma,
+        gl,
+        a_c,
+        a_a,
+        u_max,
+        inv_k,
+        inv_kc,
+        current,
+        applied,
+        bootstrap,
+        known,
+        full,
+    ):
+        R, P, F = xi.shape[0], xi.shape[1], xi.shape[2]
+        N = noise.shape[0]
+        K, KC = marked.shape[1], marked_c.shape[1]
+        phi = np.empty(F)
+        phi_next = np.empty(F)
+        prod = np.empty(F)
+        tk = np.empty(max(K, KC))
+        g = np.empty(centres.shape)
+        w = np.empty(nwork)
+        e = np.empty((P, F)) if current else np.empty((1, F))
+        for r in range(R):
+            x = X[r]
+            xr, th = xi[r], theta[r]
+            e[:, :] = 0.0
+            scale = 1.0
+            code = code0[r]
+            rbf(x, counts, periodic, lo, hi, kw, centres, g, phi)
+            u = dot_j(xr, marked[code], K, phi, F, prod, tk) * inv_k
+            for k in range(N):
+                # act: u_k = pi(x_k) + du_k, saturated
+                nz = noise[k, r]
+                u_sat = u
+                if applied:
+                    u_sat = np.maximum(np.minimum(u, u_max), -u_max)
+                    a = np.maximum(np.minimum(u_sat + nz, u_max), -u_max)
+                    du = a - u_sat
+                else:
+                    a = u + nz
+                    du = nz
+                # the plant and the net move
+                plant_step(x, a, pc, w)
+                code1 = next_code[clock[k], code, atoms(x)]
+                rew = reward_tab[code, code1]
+                ret[r] += rew if full else reward_full[code, code1]
+                rbf(x, counts, periodic, lo, hi, kw, centres, g, phi_next)
+                # TD error with Theta_k
+                delta = dot_j(th, marked_c[code], KC, phi, F, prod, tk) * -inv_kc
+                delta += rew
+                if bootstrap or k < N - 1:
+                    delta += dot_j(th, marked_c[code1], KC, phi_next, F, prod, tk) * (gamma * inv_kc)
+                if known:
+                    delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
+                # actor
+                coef = delta * du
+                if applied:
+                    over = (u - u_sat) * coef
+                    coef *= 1.0 if over <= 0.0 else 0.0
+                # critic
+                scale *= gl
+                if scale < 1e-100:
+                    for i in range(e.shape[0]):
+                        for f in range(F):
+                            e[i, f] *= scale
+                    scale = 1.0
+                if current:
+                    coef *= a_a * inv_k
+                    for j in range(K):
+                        row = marked[code, j]
+                        for f in range(F):
+                            xr[row, f] += coef * phi[f]
+                    c_e = inv_kc / scale
+                    for j in range(KC):
+                        row = marked_c[code, j]
+                        for f in range(F):
+                            e[row, f] += c_e * phi[f]
+                    sv = delta * (a_c * scale)
+                    for i in range(P):
+                        for f in range(F):
+                            th[i, f] += e[i, f] * sv
+                else:
+                    coef *= a_a
+                    for j in range(K):
+                        row = marked[code1, j]
+                        for f in range(F):
+                            xr[row, f] += coef * phi[f]
+                    c_e = 1.0 / scale
+                    for f in range(F):
+                        e[0, f] += phi[f] * c_e
+                    sv = delta * (a_c * scale)
+                    for j in range(KC):
+                        row = marked_c[code1, j]
+                        for f in range(F):
+                            th[row, f] += e[0, f] * sv
+                # next policy output with Xi_k+1
+                code = code1
+                phi, phi_next = phi_next, phi
+                u = dot_j(xr, marked[code], K, phi, F, prod, tk) * inv_k
+
+    return jit_fn(trial)
+
+
+def unsupported(agent: Any) -> str | None:
+    """Why the fused kernel cannot train ``agent`` (a :class:`~mitlc.learn.sacpn.Sacpn`), or None."""
+    plant = agent.plant
+    if plant.stepped:
+        return f"plant '{plant.name}' is an environment (stepped, not integrated)"
+    if plant.kernel_step is None:
+        return f"plant '{plant.name}' has no kernel_step (its one-step map for one run)"
+    rt = agent.runtime
+    if rt.timed:
+        return "the net has timed obligations (nested intervals)"
+    if agent.rs.paid_by_monitor:
+        return f"the reward is the monitor's ({agent.rs.options.reward}), not the net's"
+    if rt.graded:
+        return "the reward is graded (reward = shaped): it reads the state, not only the marking"
+    if rt.tables is None or rt.tables.reward is None:
+        return "the net's rewards are not tabulated"
+    if any(w is not None for w in agent.features.warps):
+        return "the features have warped axes"
+    return None
