@@ -41,6 +41,7 @@ STAGES: dict[str, tuple[str, str]] = {
     "petri": ("Spec", "RewardSystem"),
     "hybrid": ("Spec", "HybridAutomaton"),
     "monitor": ("Spec + traces", "MonitorResult"),
+    "runtime": ("RewardSystem + state names", "NetRuntime"),
     "learn": ("RewardSystem | HybridAutomaton", "Sacpn, HybridLearner"),
     "sweep": ("Spec + grid", "ResultStore"),
     "gym": ("RewardSystem + gym.Env", "MitlRewardWrapper"),
