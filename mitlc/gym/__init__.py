@@ -11,14 +11,15 @@ Gymnasium environment and pays its reward. :class:`MitlPlantEnv` (:mod:`~mitlc.g
 registered as ``mitlc/Pendulum-v0``, ``mitlc/MassDamper-v0`` when this package is imported) is
 one of mitlc's plants as an environment paying the same reward, with the same marking, clocks
 and ``info``. Both are a :class:`MitlNetEnv` (:mod:`~mitlc.gym.netenv`, the net stepped beside
-an episode): the interface :class:`mitlc.crm.CounterfactualReplayBuffer` and
+an episode): the interface :class:`mitlc.gym.crm.CounterfactualReplayBuffer` and
 :class:`Sb3Policy` (:mod:`~mitlc.gym.sb3`: a Stable-Baselines3 model trained on them as a
 :class:`mitlc.learn.policy.Policy`, for ``mitlc simulate --policy model.zip``) read.
 :mod:`~mitlc.gym.observation` reads the spec's state off an observation (``observe``,
 :func:`pendulum_v1_state`) and lays out the marking and clocks beside it.
 
 Gymnasium is an optional dependency: ``pip install 'mitlc[gym]'``. Importing this package
-imports neither Stable-Baselines3 nor PyTorch: :func:`load_sb3` does (``pip install 'mitlc[sb3]'``).
+imports neither Stable-Baselines3 nor PyTorch: :func:`load_sb3` does, and so does
+:mod:`mitlc.gym.crm` (``pip install 'mitlc[sb3]'``), which is imported only by name.
 """
 
 try:

@@ -36,7 +36,7 @@ class MitlPlantEnv(MitlNetEnv, gym.Env):
     :class:`~mitlc.gym.MitlRewardWrapper`'s does, with the same ``verdict=`` option (``"step"``,
     ``"end"``, ``"off"``); a reward paid by the monitor (``sparse``, ``robustness``,
     ``robustness-window``) is paid by it here too. It is a :class:`MitlNetEnv` as the wrapper
-    is: :class:`mitlc.crm.CounterfactualReplayBuffer` takes it, and :class:`~mitlc.gym.Sb3Policy` rolls a
+    is: :class:`mitlc.gym.crm.CounterfactualReplayBuffer` takes it, and :class:`~mitlc.gym.Sb3Policy` rolls a
     model trained on it out for ``mitlc simulate``.
     """
 

@@ -5,7 +5,7 @@ It drives one :class:`~mitlc.learn.runtime.NetRuntime` run per episode: the net 
 initial marking on ``reset`` (:meth:`MitlNetEnv._net_reset`), one step of the net per step of
 the environment (:meth:`MitlNetEnv._net_step`, on the net's marking codes where its tables hold
 the whole step), and the monitor's ``info["verdict"]`` on the states so far.
-:class:`MarkingCodes` is the tabulated net that :class:`mitlc.crm.CounterfactualReplayBuffer`
+:class:`MarkingCodes` is the tabulated net that :class:`mitlc.gym.crm.CounterfactualReplayBuffer`
 reads.
 """
 
@@ -55,7 +55,7 @@ def _state_names(spec: Spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
 @dataclass(frozen=True)
 class MarkingCodes:
     """The net of a :class:`MitlNetEnv` on marking codes, one sample at a time: what
-    :class:`mitlc.crm.CounterfactualReplayBuffer` steps every other marking with.
+    :class:`mitlc.gym.crm.CounterfactualReplayBuffer` steps every other marking with.
 
     ``markings[c]`` is the marking of code ``c`` ``(places,)`` (int64, ``place_names`` order),
     ``rewards[c, c1]`` the reward of the step from ``c`` to ``c1``, and ``step(c, x, tau)`` the
