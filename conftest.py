@@ -1,10 +1,14 @@
 """What pytest needs at the repository's root, for the doctests of mitlc/ and the tests alike.
 
 * **Optional modules.** pyproject's ``--doctest-modules`` imports every module of the package
-  to collect its doctests. A module that exists to bridge to an optional extra (``mitlc.crm``
+  to collect its doctests. A module that exists to bridge to an optional extra (``mitlc.gym.crm``
   subclasses Stable-Baselines3's replay buffer) cannot be imported without it: its doctests
   are then reported as skipped, with the extra to install, instead of a collection error that
   stops the README's test command.
+* **Moved modules.** A deprecation shim left where a module was (``mitlc/crm.py``, now
+  ``mitlc.gym.crm``; ``mitlc/learn/runtime.py``, now ``mitlc.runtime``; ...) has no doctests,
+  and importing it only warns: it is not collected. tests/test_crm.py and
+  tests/test_moved_modules.py import them, to check that they warn and give the same objects.
 * **What was skipped.** With ``MITLC_SKIPPED_FILE=PATH`` set, the node ids of every test and
   module that skipped are written to PATH, one per line, at the end of the session. ``.ci/run``
   runs the README's test command first with only ``[test]`` installed, then installs the heavy
@@ -29,12 +33,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 # module file (relative to the root) -> (the importable it needs, the extra that brings it)
 OPTIONAL_MODULES = {
-    "mitlc/crm.py": ("stable_baselines3", "sb3"),
+    "mitlc/gym/crm.py": ("stable_baselines3", "sb3"),
 }
 
-
-# Deprecated re-exports of moved modules (issue 30): importing one warns, and they hold no doctests
-collect_ignore = ["mitlc/learn/runtime.py", "mitlc/learn/kernel.py", "mitlc/learn/hyrl_eval.py"]
+SHIMS = {"mitlc/crm.py", "mitlc/learn/runtime.py", "mitlc/learn/kernel.py", "mitlc/learn/hyrl_eval.py"}
+"""Module files (relative to the root) that only re-export a moved module, with a DeprecationWarning."""
 
 
 class _NeedsExtra(pytest.File):
@@ -53,6 +56,8 @@ def pytest_collect_file(file_path: Path, parent: pytest.Collector):  # type: ign
         rel = file_path.resolve().relative_to(ROOT).as_posix()
     except ValueError:
         return collected
+    if rel in SHIMS:
+        return []
     need = OPTIONAL_MODULES.get(rel)
     if need is None or importlib.util.find_spec(need[0]) is not None:
         return collected

@@ -1,10 +1,10 @@
-"""What counterfactual markings (mitlc.crm) cost per environment step, against SB3's own buffer.
+"""What counterfactual markings (mitlc.gym.crm) cost per environment step, against SB3's own buffer.
 
 Run:  python bench/bench_crm.py [--steps 2000] [--repeat 3] [--spec pendulum/p4_alternate]
 
 Records ``--steps`` transitions of a seeded random agent on Pendulum-v1 wrapped by
 :class:`mitlc.gym.MitlRewardWrapper` (``marking_obs="box"``), then times adding them to
-Stable-Baselines3's ``ReplayBuffer`` and to :class:`mitlc.crm.CounterfactualReplayBuffer` in one
+Stable-Baselines3's ``ReplayBuffer`` and to :class:`mitlc.gym.crm.CounterfactualReplayBuffer` in one
 process, and prints the median microseconds per environment step of ``--repeat`` passes, the
 counterfactual transitions added per step, and the ratio. It prints timings; it asserts nothing.
 """
@@ -19,8 +19,8 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.buffers import ReplayBuffer
 
-from mitlc.crm import CounterfactualReplayBuffer
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state
+from mitlc.gym.crm import CounterfactualReplayBuffer
 
 
 def main() -> None:

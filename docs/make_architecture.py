@@ -8,7 +8,7 @@ layer rule's own); every import of a ``mitlc`` module counts, the ones inside fu
 too, and so does
 ``importlib.import_module("mitlc....")`` with a literal name (drawn dashed: the gym
 wrapper's optional monitor).  A module belongs to the stage of the first folder under
-``mitlc/`` (``gym.py``, ``errors.py`` and ``fileio.py`` are stages of one file);
+``mitlc/`` (``errors.py`` and ``fileio.py`` are stages of one file);
 ``mitlc/__init__.py`` and ``__main__.py``, the public facade, are left out.  Each edge
 runs from the imported stage to the importing one, the way the data flows; an edge
 against the order of :data:`STAGES` is drawn red (tests/test_layers.py fails on it).

@@ -2,7 +2,7 @@
 
 The compiled reward of a thesis spec pays SAC through :class:`mitlc.gym.MitlRewardWrapper`
 (``marking_obs="box"``: Pendulum's observation and the marking); with ``--crm`` rows the replay
-buffer is :class:`mitlc.crm.CounterfactualReplayBuffer`. The cart with the small goal
+buffer is :class:`mitlc.gym.crm.CounterfactualReplayBuffer`. The cart with the small goal
 (examples/cart/) runs as :class:`mitlc.gym.MitlPlantEnv`, the plant as an environment paying
 the compiled reward. After the row's environment steps (``--steps`` for the pendulum) the
 deterministic policy runs ``--episodes`` episodes from seeded resets, each judged by the monitor
@@ -81,7 +81,7 @@ def train(job: tuple) -> dict:
     env = make("off")
     kwargs: dict = {}
     if crm:
-        from mitlc.crm import CounterfactualReplayBuffer
+        from mitlc.gym.crm import CounterfactualReplayBuffer
 
         kwargs = {"replay_buffer_class": CounterfactualReplayBuffer, "replay_buffer_kwargs": {"wrapper": env}}
     model = SAC("MlpPolicy", env, seed=seed, device="cpu", verbose=0, **kwargs)
@@ -166,7 +166,7 @@ def main() -> None:
         f"SAC with Stable-Baselines3's defaults for {steps} environment steps on Pendulum-v1 ({cart_steps} on the "
         "cart), paid by the spec's compiled reward with the row's design: Pendulum-v1 through `MitlRewardWrapper` "
         '(`marking_obs="box"`), the cart of examples/cart/ as `MitlPlantEnv`; **CRM**: with '
-        "`mitlc.crm.CounterfactualReplayBuffer`. Success: the fraction of "
+        "`mitlc.gym.crm.CounterfactualReplayBuffer`. Success: the fraction of "
         f"{episodes} deterministic test episodes (seeded resets) that the monitor accepts, mean and 95 % "
         f"interval over {seeds} seeds. Pendulum-v1's torque limit is 2 N m, not the thesis pendulum's.",
         "",

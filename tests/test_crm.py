@@ -1,7 +1,9 @@
-"""mitlc.crm: counterfactual experience over markings in a Stable-Baselines3 replay buffer, against
+"""mitlc.gym.crm: counterfactual experience over markings in a Stable-Baselines3 replay buffer, against
 the runtime's array path (markings, not the wrapper's tables)."""
 
 from __future__ import annotations
+
+import sys
 
 import numpy as np
 import pytest
@@ -9,9 +11,9 @@ import pytest
 pytest.importorskip("stable_baselines3", reason="needs Stable-Baselines3 and PyTorch: pip install 'mitlc[sb3]'")
 gym = pytest.importorskip("gymnasium")
 
-from mitlc.crm import CounterfactualReplayBuffer, counterfactual_codes  # noqa: E402
 from mitlc.errors import InputError  # noqa: E402
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state  # noqa: E402
+from mitlc.gym.crm import CounterfactualReplayBuffer, counterfactual_codes, find_net_env  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.runtime import NetRuntime  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
@@ -193,3 +195,24 @@ def test_sac_learns_on_the_registered_environment_briefly() -> None:
     )
     model.learn(100)
     assert model.replay_buffer.added == 100 and model.replay_buffer.pos == 200
+
+
+def test_the_old_module_warns_and_gives_the_same_objects(monkeypatch: pytest.MonkeyPatch) -> None:
+    """mitlc.crm, where the buffer was, stays one release: importing it warns once, naming the
+    importer's line, and gives mitlc.gym.crm's own objects."""
+    import linecache
+    import warnings
+
+    monkeypatch.delitem(sys.modules, "mitlc.crm", raising=False)  # imported afresh: its warning again
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        import mitlc.crm as old  # the only import of the old module in the project
+    moved = [w for w in caught if issubclass(w.category, DeprecationWarning)]
+    assert len(moved) == 1, [str(w.message) for w in caught]
+    assert str(moved[0].message).startswith("mitlc.crm moved to mitlc.gym.crm; ")
+    assert moved[0].filename == __file__  # the importer's line, not the shim's
+    assert "import mitlc.crm as old" in linecache.getline(__file__, moved[0].lineno)
+    assert old.CounterfactualReplayBuffer is CounterfactualReplayBuffer
+    assert old.counterfactual_codes is counterfactual_codes
+    assert old.find_net_env is find_net_env
+    assert old.__all__ == ["CounterfactualReplayBuffer", "counterfactual_codes", "find_net_env"]
