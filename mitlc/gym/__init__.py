@@ -4,7 +4,7 @@ In: a :class:`~mitlc.petri.RewardSystem` (or a :class:`~mitlc.spec.Spec`, or the
 ``.mitl`` file) and a Gymnasium environment. Out: :class:`MitlRewardWrapper`, the environment
 paying the compiled reward. May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`,
 :mod:`mitlc.limits`, :mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.monitor`,
-:mod:`mitlc.learn`.
+:mod:`mitlc.runtime`, :mod:`mitlc.learn`.
 
 :class:`MitlRewardWrapper` (:mod:`~mitlc.gym.wrapper`) steps the reward net beside any
 Gymnasium environment and pays its reward. :class:`MitlPlantEnv` (:mod:`~mitlc.gym.envs`,
