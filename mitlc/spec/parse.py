@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -349,29 +350,7 @@ def _parse_spec(text: str, path: str | None) -> Spec:
         if f is None:
             continue
         check_weights(f, text)
-        for node in A.walk(f):  # inline predicates become propositions named after their text
-            if not (isinstance(node, A.Atom) and isinstance(node.pred, P.Pred)):
-                continue
-            pos = node.pos or A.Pos(1, 1)
-            known = props.get(node.name)
-            if known is not None:
-                if str(known.pred) != str(node.pred):
-                    raise SpecError(
-                        f"the inline predicate '{node.pred}' is named '{node.name}', which a prop line defines "
-                        f"as '{known.pred}': rename that proposition",
-                        line=pos.line,
-                        column=pos.column,
-                    )
-                continue
-            problem = too_deep(node.pred, "inline predicate:")
-            if problem is not None:
-                raise SpecError(
-                    problem,
-                    line=pos.line,
-                    column=pos.column,
-                )
-            check_vars(node.pred)
-            props[node.name] = PropDef(node.name, node.pred, pos=pos, inline=True)
+        _add_inline_props(f, props, lambda pred, _: check_vars(pred), "a prop line", "rename that proposition")
         for node in A.walk(f):
             if isinstance(node, A.Atom) and node.name not in props:
                 pos = node.pos or A.Pos(1, 1)
@@ -400,6 +379,38 @@ def _parse_spec(text: str, path: str | None) -> Spec:
         warnings=tuple(warnings),
         env_plant=env_plant,
     )
+
+
+def _add_inline_props(
+    f: A.Formula,
+    props: dict[str, PropDef],
+    check_vars: Callable[[P.Pred, A.Pos], None],
+    defined_by: str,
+    instead: str,
+) -> None:
+    """Add the inline predicates of ``f`` to ``props``, as propositions named after their text (a spec's
+    formulas, and :func:`with_inline_props`'s). A name that ``props`` holds for another predicate (which
+    ``defined_by`` defines; ``instead`` says what to do), a predicate nested too deep, or a variable
+    that ``check_vars`` (given the predicate and where it stands) refuses is a :class:`SpecError`."""
+    for node in A.walk(f):
+        if not (isinstance(node, A.Atom) and isinstance(node.pred, P.Pred)):
+            continue
+        pos = node.pos or A.Pos(1, 1)
+        known = props.get(node.name)
+        if known is not None:
+            if str(known.pred) != str(node.pred):
+                raise SpecError(
+                    f"the inline predicate '{node.pred}' is named '{node.name}', which {defined_by} defines "
+                    f"as '{known.pred}': {instead}",
+                    line=pos.line,
+                    column=pos.column,
+                )
+            continue
+        problem = too_deep(node.pred, "inline predicate:")
+        if problem is not None:
+            raise SpecError(problem, line=pos.line, column=pos.column)
+        check_vars(node.pred, pos)
+        props[node.name] = PropDef(node.name, node.pred, pos=pos, inline=True)
 
 
 def load_spec(path: str | Path) -> Spec:
@@ -448,24 +459,9 @@ def with_inline_props(spec: Spec, f: A.Formula) -> Spec:
     props = {p.name: p for p in spec.props}
     plant = spec.plant
     state = set(plant.state_names) if plant is not None else None
-    for node in A.walk(f):
-        if not (isinstance(node, A.Atom) and isinstance(node.pred, P.Pred)):
-            continue
-        pos = node.pos or A.Pos(1, 1)
-        known = props.get(node.name)
-        if known is not None:
-            if str(known.pred) != str(node.pred):
-                raise SpecError(
-                    f"the inline predicate '{node.pred}' is named '{node.name}', which the spec defines "
-                    f"as '{known.pred}': write that proposition's name, or another predicate",
-                    line=pos.line,
-                    column=pos.column,
-                )
-            continue
-        problem = too_deep(node.pred, "inline predicate:")
-        if problem is not None:
-            raise SpecError(problem, line=pos.line, column=pos.column)
-        for v in P.variables(node.pred):
+
+    def check_vars(pred: P.Pred, pos: A.Pos) -> None:
+        for v in P.variables(pred):
             where = v.pos or pos
             if v.name in props and (state is None or v.name not in state):
                 raise SpecError(
@@ -479,7 +475,8 @@ def with_inline_props(spec: Spec, f: A.Formula) -> Spec:
                     line=where.line,
                     column=where.column,
                 )
-        props[node.name] = PropDef(node.name, node.pred, pos=pos, inline=True)
+
+    _add_inline_props(f, props, check_vars, "the spec", "write that proposition's name, or another predicate")
     if len(props) == len(spec.props):
         return spec
     return dataclasses.replace(spec, props=tuple(props.values()))
