@@ -383,16 +383,16 @@ class _Evil:
 
 
 def test_a_pickle_in_the_parser_cache_does_not_run(tmp_path: Path) -> None:
-    from mitlc.spec import parse as P
+    from mitlc.spec import lark_tables as T
 
     cache = tmp_path / "cache"
     (cache / "parser").mkdir(parents=True, mode=0o700)
     cache.chmod(0o700)
     marker = tmp_path / "pwned"
-    grammar = P._grammar_text()
+    grammar = T._grammar_text()
     evil = pickle.dumps(_Evil(marker))
     for start in ("start", "formula", "pred"):
-        key = P._tables_key(grammar, start)
+        key = T._tables_key(grammar, start)
         old = cache / "parser" / f"mitl-{start}-{key[:16]}.lark"  # where lark's pickle was
         old.write_bytes(key.encode() + b"\n" + evil + evil)
         new = cache / "parser" / f"mitl-{start}-{key[:16]}.json"
@@ -403,8 +403,8 @@ def test_a_pickle_in_the_parser_cache_does_not_run(tmp_path: Path) -> None:
         assert r.returncode == 0, r.stderr
         assert not marker.exists()
         assert "formula:     F G kappa & 10 * G !psi" in r.stdout
-    kept = (cache / "parser" / f"mitl-start-{P._tables_key(grammar, 'start')[:16]}.json").read_bytes()
-    assert kept.startswith(b"mitlc-parser-tables 1 " + P._tables_key(grammar, "start").encode() + b" ")
+    kept = (cache / "parser" / f"mitl-start-{T._tables_key(grammar, 'start')[:16]}.json").read_bytes()
+    assert kept.startswith(b"mitlc-parser-tables 1 " + T._tables_key(grammar, "start").encode() + b" ")
     json.loads(kept.partition(b"\n")[2])  # plain data
 
 
@@ -422,21 +422,22 @@ def _parsed(parser, text: str) -> str:
 def test_tables_from_the_cache_parse_as_built_ones(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from lark import Lark
 
-    from mitlc.spec import parse as P
+    from mitlc.spec import lark_tables as T
+    from mitlc.spec.transform import Build
 
     monkeypatch.setenv("MITLC_CACHE_DIR", str(tmp_path / "c"))
-    grammar = P._grammar_text()
+    grammar = T._grammar_text()
     texts = [p.read_text() for p in sorted(SPECS.rglob("*.mitl"))]
     texts += [t[: len(t) // 2] for t in texts[:6]] + ["prop = 1", "formula F[2,1] a", "formula G (a -> ", "x" * 5]
     assert len(texts) > 20
     for start in ("start",):
-        built = Lark(grammar, parser="lalr", start=start, transformer=P._Build(), maybe_placeholders=True)
-        path = Path(str(P._table_file(grammar, start)))
-        P._save_tables(built, path, P._tables_key(grammar, start))
-        loaded = P._load_tables(path, P._tables_key(grammar, start))
+        built = Lark(grammar, parser="lalr", start=start, transformer=Build(), maybe_placeholders=True)
+        path = Path(str(T._table_file(grammar, start)))
+        T._save_tables(built, path, T._tables_key(grammar, start))
+        loaded = T._load_tables(path, T._tables_key(grammar, start))
         assert loaded is not None
         assert [_parsed(loaded, t) for t in texts] == [_parsed(built, t) for t in texts]
-        assert P._load_tables(path, "another grammar") is None
+        assert T._load_tables(path, "another grammar") is None
 
 
 @pytest.mark.skipif(not hasattr(os, "getuid"), reason="no user ids on this platform")
@@ -444,38 +445,39 @@ def test_cache_files_not_the_users_own_are_not_read(tmp_path: Path, monkeypatch:
     from lark import Lark
 
     from mitlc import cachefiles as C
-    from mitlc.spec import parse as P
+    from mitlc.spec import lark_tables as T
+    from mitlc.spec.transform import Build
 
     root = tmp_path / "c"
     monkeypatch.setenv("MITLC_CACHE_DIR", str(root))
-    grammar = P._grammar_text()
-    key = P._tables_key(grammar, "pred")
-    path = Path(str(P._table_file(grammar, "pred")))
+    grammar = T._grammar_text()
+    key = T._tables_key(grammar, "pred")
+    path = Path(str(T._table_file(grammar, "pred")))
     assert oct(root.stat().st_mode & 0o777) == oct(0o700) and oct(path.parent.stat().st_mode & 0o777) == oct(0o700)
-    P._save_tables(Lark(grammar, parser="lalr", start="pred", transformer=P._Build()), path, key)
-    assert P._load_tables(path, key) is not None and C.untrusted(path) is None
+    T._save_tables(Lark(grammar, parser="lalr", start="pred", transformer=Build()), path, key)
+    assert T._load_tables(path, key) is not None and C.untrusted(path) is None
 
     path.chmod(0o666)  # writable by anyone, but in a folder only its owner may enter: still private
     assert C.untrusted(path) is None
     path.parent.chmod(0o755)
     assert C.untrusted(path) == f"writable by others (mode 0666; chmod go-w {path})"
-    assert P._load_tables(path, key) is None
+    assert T._load_tables(path, key) is None
     path.chmod(0o600)
-    assert P._load_tables(path, key) is not None
+    assert T._load_tables(path, key) is not None
 
     path.parent.chmod(0o775)  # a folder others may write: nothing in it is read, nothing written
-    assert P._table_file(grammar, "pred") is False
+    assert T._table_file(grammar, "pred") is False
     folder, why = C.cache_folder("parser")
     assert folder is None and why == f"{path.parent} is writable by others (mode 0775; chmod go-w {path.parent})"
     path.parent.chmod(0o700)
-    assert P._table_file(grammar, "pred") == str(path)
+    assert T._table_file(grammar, "pred") == str(path)
 
     if os.getuid() == 0:  # root can make a file another user's
         os.chown(path, 4321, 4321)
         assert C.untrusted(path) == "owned by user 4321, not by you (0)"
-        assert P._load_tables(path, key) is None
+        assert T._load_tables(path, key) is None
         os.chown(path.parent, 4321, 4321)
-        assert P._table_file(grammar, "pred") is False
+        assert T._table_file(grammar, "pred") is False
 
 
 @pytest.mark.skipif(not hasattr(os, "getuid"), reason="no user ids on this platform")

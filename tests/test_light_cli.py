@@ -236,20 +236,21 @@ def test_a_csv_error_is_one_located_line(tmp_path: Path) -> None:
 def test_the_parser_tables_are_kept_on_disk(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Building the LALR tables was most of a short check's start-up: lark keeps them in mitlc's cache
     folder, and a parser loaded from there parses as a built one does; MITLC_CACHE_DIR= turns it off."""
+    from mitlc.spec import lark_tables as T
     from mitlc.spec import parse as P
 
     text = "[] (a -> <>[0:2.5] b) && !c"
     built = str(P.parse_formula(text))
     monkeypatch.setenv("MITLC_CACHE_DIR", str(tmp_path))
-    P._parser.cache_clear()
+    T.parser_for.cache_clear()
     try:
         assert str(P.parse_formula(text)) == built == "G (a -> F[0,2.5] b) & !c"
         files = list((tmp_path / "parser").iterdir())
         assert [f.name[:13] for f in files] == ["mitl-formula-"] and files[0].stat().st_size > 1000
-        P._parser.cache_clear()
+        T.parser_for.cache_clear()
         assert str(P.parse_formula(text)) == built  # from the file this time
         assert list((tmp_path / "parser").iterdir()) == files
         monkeypatch.setenv("MITLC_CACHE_DIR", "")
-        assert P._table_file("grammar", "start") is False
+        assert T._table_file("grammar", "start") is False
     finally:
-        P._parser.cache_clear()
+        T.parser_for.cache_clear()

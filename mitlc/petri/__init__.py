@@ -10,7 +10,8 @@ The builder of :mod:`~mitlc.petri.compile` takes its sub-nets from one module pe
 :mod:`~mitlc.petri.regions` (state), :mod:`~mitlc.petri.timeline` (the trial clock),
 :mod:`~mitlc.petri.violations` (violation watches and the penalty's bounds), as
 :class:`~mitlc.petri.parts.Part` drafts; :mod:`~mitlc.petri.reading` holds the
-formula-level helpers.
+formula-level helpers, :mod:`~mitlc.petri.options` the :class:`CompileOptions` both the
+builder and the violation watches read.
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`.

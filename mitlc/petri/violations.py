@@ -7,19 +7,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mitlc.petri import reward as R
 from mitlc.petri.net import Guard, GuardTerm, Net, eval_state
+from mitlc.petri.options import CompileOptions
 from mitlc.petri.parts import Part
 from mitlc.petri.reading import negate_state
 from mitlc.petri.timeline import Threshold
 from mitlc.spec import ast as A
-
-if TYPE_CHECKING:
-    from mitlc.petri.compile import CompileOptions
 
 __all__ = ["ViolationWatches", "MAX_PAIRS", "bounds_all_steps", "bounds_without_violation"]
 
