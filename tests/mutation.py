@@ -49,6 +49,10 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
         "mitlc/runtime/netruntime.py",
         ["test_runtime.py", "test_net_vs_monitor.py", "test_sacpn.py", "test_sparse.py"],
     ),
+    # the runtime's pieces, split out of one file by issue 30: the same tests
+    "rule": ("mitlc/runtime/rule.py", ["test_runtime.py", "test_net_vs_monitor.py", "test_sparse.py"]),
+    "tables": ("mitlc/runtime/tables.py", ["test_runtime.py", "test_net_vs_monitor.py", "test_sparse.py"]),
+    "obligations": ("mitlc/runtime/obligations.py", ["test_timed_contract.py", "test_net_vs_monitor.py"]),
     "reward": (
         "mitlc/petri/reward.py",
         ["test_reward.py", "test_compile.py", "test_compile_props.py", "test_runtime.py", "test_violations.py"],
@@ -56,6 +60,9 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
     "monitor": ("mitlc/monitor/offline.py", ["test_monitor.py", "test_net_vs_monitor.py", "test_passes.py"]),
     "kernels": ("mitlc/monitor/kernels.py", ["test_monitor.py", "test_net_vs_monitor.py", "test_passes.py"]),
     "parse": ("mitlc/spec/parse.py", ["test_parse.py", "test_inline_predicates.py", "test_gym_plants.py"]),
+    # the parser's pieces, split out of parse.py by issue 30: the same tests
+    "transform": ("mitlc/spec/transform.py", ["test_parse.py", "test_inline_predicates.py"]),
+    "checks": ("mitlc/spec/checks.py", ["test_parse.py", "test_deep_and_messages.py"]),
     "passes": ("mitlc/spec/passes.py", ["test_passes.py", "test_compile.py", "test_parse.py"]),
 }
 """Module -> (its file, its own tests)."""
