@@ -89,7 +89,7 @@ def _clean(result, ok: tuple[int, ...]) -> None:
         assert result.exit_code in ok, result.output
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(formula=formulas(), net=st.booleans())
 def test_wide_and_deep_formulas_check_and_compile_or_fail_in_one_line(tmp_path_factory, formula, net):
     d: Path = tmp_path_factory.mktemp("deep")
