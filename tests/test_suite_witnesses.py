@@ -3,13 +3,14 @@
 Each task's witness, rolled out on mitlc's own simulator from starts spread over the spec's
 ``init`` box, is accepted by the monitor from every start; one witness rollout per task, written
 as a CSV trace, is accepted by ``python -m mitlc check`` (exit 0); doing nothing is not enough
-for any task; the families each spec claims are in its formula.
+for any task; the families each spec claims are in its formula; the split is the recorded draw.
 """
 
 from __future__ import annotations
 
 import doctest
 import importlib
+import json
 import os
 import subprocess
 import sys
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.suite.split import SPLIT, problems
 from bench.suite.tasks import FAMILIES, init_box, load_tasks, params_of, rollout, task, zero_input
 from mitlc.monitor.trace import write_trace
 from mitlc.spec import ast as A
@@ -176,7 +178,23 @@ def test_the_families_are_in_the_formula(name: str) -> None:
     assert not missing, f"{name} names {missing}, which its formula {f} does not show"
 
 
-@pytest.mark.parametrize("module", ["bench.suite.tasks"])
+def test_the_split_is_the_recorded_draw() -> None:
+    record = json.loads(SPLIT.read_text())
+    assert problems(record) == []
+    assert record["command"] == "python -m bench.suite.split" and record["seed"] == 31
+    suite = {t.name: t for t in load_tasks()}
+    tuning, check = record["tuning"], record["check"]
+    assert abs(len(tuning) - len(check)) <= 1
+    for half in (tuning, check):
+        assert any(suite[n].nested for n in half)
+        plants = {suite[n].plant for n in half}
+        assert plants == {t.plant for t in suite.values() if sum(u.plant == t.plant for u in suite.values()) >= 2}
+    # a broken record is found out
+    swapped = {**record, "tuning": [*tuning[1:], check[0]], "check": [*check[1:], tuning[0]]}
+    assert problems(swapped) and problems({**record, "check": check[1:]})
+
+
+@pytest.mark.parametrize("module", ["bench.suite.tasks", "bench.suite.split"])
 def test_the_doctests_of_the_suite(module: str) -> None:
     res = doctest.testmod(importlib.import_module(module))
     assert res.attempted > 0 and res.failed == 0
