@@ -12,7 +12,20 @@ Add a plant: a module here with its dynamics and a :func:`register` call (see
 """
 
 from mitlc.plants.base import PLANTS, Plant, StateVar, make_integrator, register, wrap_angle
+from mitlc.plants.cart import CART
+from mitlc.plants.cartpole import CARTPOLE
 from mitlc.plants.mass_damper import MASS_DAMPER
 from mitlc.plants.pendulum import PENDULUM
 
-__all__ = ["MASS_DAMPER", "PENDULUM", "PLANTS", "Plant", "StateVar", "make_integrator", "register", "wrap_angle"]
+__all__ = [
+    "CART",
+    "CARTPOLE",
+    "MASS_DAMPER",
+    "PENDULUM",
+    "PLANTS",
+    "Plant",
+    "StateVar",
+    "make_integrator",
+    "register",
+    "wrap_angle",
+]
