@@ -184,13 +184,14 @@ def test_kernel_setting_is_checked(monkeypatch: pytest.MonkeyPatch) -> None:
     assert (agent.kernel, agent.kernel_reason) == ("numpy", "numba is not installed")
 
 
-@pytest.mark.parametrize("plant", ["pendulum", "mass-damper"])
+@pytest.mark.parametrize("plant", ["pendulum", "mass-damper", "unicycle"])
 def test_plant_kernel_step_is_the_batched_step(plant: str) -> None:
     pl = PLANTS[plant]
     p = pl.params()
     rng = np.random.default_rng(0)
     x = rng.uniform([v.lo for v in pl.state], [v.hi for v in pl.state], (200, len(pl.state)))
-    u = rng.uniform(-2 * p["u_max"], 2 * p["u_max"], 200)
+    lo, hi = pl.input_box(p)  # inputs up to twice their boxes: the clips are in the step
+    u = rng.uniform(2 * lo, 2 * hi, (200, pl.n_inputs)) if pl.n_inputs > 1 else rng.uniform(2 * lo, 2 * hi, 200)
     batched = x.copy()
     make_integrator(pl, p)(batched, u)
     step, consts, work = pl.kernel_step(pl, p, fk.identity)
