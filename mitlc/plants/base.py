@@ -169,11 +169,12 @@ def _num(v: object) -> str:
 
 @dataclass(frozen=True)
 class Plant:
-    """A plant: state variables, parameters and a batched one-step map.
+    """A plant: state variables, inputs, parameters and a batched one-step map.
 
-    ``dynamics(x, u, params) -> xdot`` works on arrays of shape ``(R, n)``;
-    :meth:`step` integrates it with RK4 over ``params['dt']``, wraps the
-    angles and clips bounded velocities.
+    ``dynamics(x, u, params) -> xdot`` works on arrays of shape ``(R, n)``, with ``u``
+    ``(R,)`` for one input and ``(R, m)`` for ``m`` (:attr:`inputs`); :meth:`step`
+    integrates it with RK4 over ``params['dt']``, clips the inputs to their boxes,
+    wraps the angles and clips bounded velocities.
     """
 
     name: str

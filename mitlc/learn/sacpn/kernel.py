@@ -29,7 +29,7 @@ There is one algorithm written twice, vectorised and scalar, and nothing may dri
   bits with numpy held to its baseline, ``NPY_DISABLE_CPU_FEATURES``, and a tolerance
   otherwise).
 
-Scope: ODE plants with a ``kernel_step``, RBF features without warped axes, nets
+Scope: ODE plants with a ``kernel_step`` (any number of inputs), RBF features without warped axes, nets
 whose transitions and rewards are fully tabulated (no timed obligations). The
 predicates are compiled from their syntax trees (data, never text) to Python
 source by :func:`mitlc.runtime.atoms.atom_source`. Anything else trains on the numpy path

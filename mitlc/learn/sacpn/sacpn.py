@@ -39,6 +39,11 @@ the reasons):
   which equals ``exp(-(q - c)^2 / (2 w^2))`` to second order and wraps.
 * **Exploration**: ``du ~ N(0, sigma^2)`` independent per step;
   ``sigma = sigma_frac * u_max`` unless given.
+* **Several inputs** (a plant that declares them, :class:`~mitlc.plants.base.InputVar`):
+  one actor output per input, ``Xi`` with an input axis ``(runs, places, inputs,
+  features)``; each input is saturated (and protected from wind-up) at its own box and
+  explored with its own ``sigma_frac`` x the box's half-width; the TD error and the
+  critic are shared.
 * **Violation penalties** (``violation_value``, ``penalty_ramp``; only with
   ``violations = permanent | counted``).  After the first violation the
   permanent charge is a known constant per step, so the critic is given its
