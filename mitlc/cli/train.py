@@ -241,7 +241,11 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     "(default 0.75; 0 = full from the start).",
 )
 @click.option(
-    "--sigma", type=float, default=None, help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL)."
+    "--sigma",
+    type=float,
+    default=None,
+    help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL; a plant with several inputs takes "
+    "--set sigma_frac=F instead).",
 )
 @click.option(
     "--mask",

@@ -133,10 +133,12 @@ class SacpnSettings(Settings):
     for the features only. Names the plant does not have are ignored."""
 
     sigma: float | None = None
-    """Exploration standard deviation of the input; ``None``: ``sigma_frac * u_max``."""
+    """Exploration standard deviation of the input; ``None``: ``sigma_frac * u_max``. A plant
+    with several inputs takes no one ``sigma`` (refused): each input's is from ``sigma_frac``."""
 
     sigma_frac: float = 0.3
-    """Exploration as a fraction of the input bound when ``sigma`` is not given."""
+    """Exploration as a fraction of the input bound when ``sigma`` is not given (of each input's
+    half-range, ``(hi - lo) / 2``, for a plant that declares its inputs)."""
 
     trial_s: float | None = None
     """Trial duration in seconds; ``None``: the spec's ``horizon``, else 3 s (Table 4-4)."""
