@@ -184,13 +184,14 @@ def test_kernel_setting_is_checked(monkeypatch: pytest.MonkeyPatch) -> None:
     assert (agent.kernel, agent.kernel_reason) == ("numpy", "numba is not installed")
 
 
-@pytest.mark.parametrize("plant", ["pendulum", "mass-damper"])
+@pytest.mark.parametrize("plant", ["pendulum", "mass-damper", "unicycle"])
 def test_plant_kernel_step_is_the_batched_step(plant: str) -> None:
     pl = PLANTS[plant]
     p = pl.params()
     rng = np.random.default_rng(0)
     x = rng.uniform([v.lo for v in pl.state], [v.hi for v in pl.state], (200, len(pl.state)))
-    u = rng.uniform(-2 * p["u_max"], 2 * p["u_max"], 200)
+    lo, hi = pl.input_box(p)  # inputs up to twice their boxes: the clips are in the step
+    u = rng.uniform(2 * lo, 2 * hi, (200, pl.n_inputs)) if pl.n_inputs > 1 else rng.uniform(2 * lo, 2 * hi, 200)
     batched = x.copy()
     make_integrator(pl, p)(batched, u)
     step, consts, work = pl.kernel_step(pl, p, fk.identity)
@@ -256,3 +257,33 @@ def test_scalar_atoms_are_the_numpy_atom_code(preds, states) -> None:
         want = sum(np.asarray(f(x), dtype=np.int64) << i for i, f in enumerate(compiled))
         got = [atoms([float(a), float(b)]) for a, b in states]
     assert got == list(np.broadcast_to(want, (len(states),)))
+
+
+# ------------------------------------------------------------ several inputs: the unicycle
+UNICYCLE = """plant unicycle
+init x in [-1.2, -0.8], y in [-0.2, 0.2], theta in [-pi/4, pi/4]
+horizon 1
+prop goal = (x - 1) * (x - 1) + y * y < 0.25
+prop rock = x * x + (y - 0.7) * (y - 0.7) < 0.16
+formula {}
+"""
+UNICYCLE_SMALL = {"rbf": (3, 3, 2), "sigma_frac": 0.8}  # wide exploration: both inputs saturate now and then
+
+
+@pytest.mark.parametrize("formula", ["F G goal", "F G goal & 10 * G !rock"])  # one marked row per run; several
+@pytest.mark.parametrize("variant", range(len(VARIANTS)))
+def test_two_inputs_uncompiled_kernel_is_the_numpy_trial(formula: str, variant: int) -> None:
+    """A plant with two inputs (an actor row per place and input, each saturated to its own box):
+    the fused kernel as plain Python is the numpy trial to the bit."""
+    rs = compile_spec(parse_spec(UNICYCLE.format(formula)))
+    same_trials(rs, SacpnSettings(kernel="numpy", **UNICYCLE_SMALL, **VARIANTS[variant]), fk.identity, trials=3)
+
+
+def test_two_inputs_compiled_kernel_is_the_numpy_trial() -> None:
+    pytest.importorskip("numba")
+    rs = compile_spec(parse_spec(UNICYCLE.format("F G goal & 10 * G !rock")))
+    a = Sacpn(rs, SacpnSettings(kernel="numpy", **UNICYCLE_SMALL), runs=2, seed=3)
+    assert a.xi.shape == (2, a.n_places, 2, a.n_features)  # (runs, places, inputs, features)
+    same_trials(rs, SacpnSettings(kernel="numpy", **UNICYCLE_SMALL), fk.jit, trials=3)
+    b = Sacpn(rs, SacpnSettings(kernel="auto", **UNICYCLE_SMALL), runs=2, seed=3)
+    assert (b.kernel, b.kernel_reason) == ("numba", None)

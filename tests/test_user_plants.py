@@ -97,7 +97,7 @@ def test_the_python_blocks_of_plants_md_run(monkeypatch) -> None:
 
     monkeypatch.chdir(ROOT)
     blocks = re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "plants.md").read_text(), flags=re.S)
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     for code in blocks:
         exec(compile(code, "docs/plants.md", "exec"), {})
     assert PLANTS["cart"].state_names == ("x", "v")

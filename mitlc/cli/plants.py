@@ -17,7 +17,8 @@ def plants() -> None:
 
     mitlc's own, those of installed packages (entry point group 'mitlc.plants') and those of
     --plant-file; for each its state variables with
-    their bounds (angles wrap), its parameters with their defaults and its default spec. Any
+    their bounds (angles wrap), its inputs with their boxes (none listed: one input u in
+    [-u_max, u_max]), its parameters with their defaults and its default spec. Any
     registered Gymnasium environment is a plant too: 'plant gym:ID' with 'state' lines mapping its
     observation; --gym-module MODULE registers those of a module of yours (mitlc docs plants)."""
     from mitlc.plants.base import PLANTS
@@ -31,11 +32,13 @@ def plants() -> None:
         for v in p.state:
             kind = ", angle (wrapped to [-pi, pi))" if v.periodic else ""
             click.echo(f"  state  {v.name} in [{v.lo:g}, {v.hi:g}]{kind}")
+        for u in p.inputs or ():  # none declared: one input u in [-u_max, u_max], u_max a parameter
+            click.echo(f"  input  {u.name} in [{u.lo:g}, {u.hi:g}]")
         click.echo("  params " + ", ".join(f"{k} = {val:g}" for k, val in p.defaults.items()))
         if p.default_spec:
             click.echo(f"  default spec: {p.default_spec.removesuffix('.mitl')}")
     click.echo(
-        "gym:ID: any registered Gymnasium environment with one continuous action (Box), e.g. gym:Pendulum-v1 "
+        "gym:ID: any registered Gymnasium environment with continuous actions (a Box), e.g. gym:Pendulum-v1 "
         "(--gym-module MODULE registers a module's own); "
         "a spec maps its state variables to the observation, 'state q = atan2(obs[1], obs[0]), w = obs[2]' "
         "(shipped: gym/mountain_car_reach, gym/pendulum_v1_swing_up)"

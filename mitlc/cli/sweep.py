@@ -45,6 +45,8 @@ def _list(spec) -> str:
         "trial_s": ("the spec's horizon", lambda: spec.horizon if spec.horizon is not None else 3.0),
         "dt": ("the plant's dt", lambda: spec.param("dt")),
     }
+    if spec.plant is not None and spec.plant.inputs is not None:  # one sigma per input, none to show here
+        meaning["sigma"] = ("sigma_frac x each input's half-range; one sigma per input", _no_value)
     for name in sweepable_settings():
         value = getattr(defaults, name)
         note = ""
@@ -55,6 +57,11 @@ def _list(spec) -> str:
                 note = f" ({meaning[name][0]})"
         lines.append(f"  {name.ljust(width)}  {format_value(value)}{note}")
     return "\n".join(lines)
+
+
+def _no_value() -> float:
+    """A default that is no one number (:func:`_list` then shows only what it means)."""
+    raise KeyError("none")
 
 
 @click.command("sweep")

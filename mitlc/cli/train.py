@@ -107,6 +107,12 @@ def _region_track(agent, codes: np.ndarray) -> tuple[np.ndarray, list[str]]:
     return local, [net.places[p].name for p in places]
 
 
+def _input_boxes(policy) -> list[tuple[str, float, float]]:
+    """``(name, lo, hi)`` of each input of the plant ``policy`` (a SACPN agent or an SB3 policy) drives."""
+    lo, hi = policy.plant.input_box(policy.params)
+    return [(n, float(a), float(b)) for n, a, b in zip(policy.plant.input_names, lo, hi, strict=True)]
+
+
 def _rollout_png(agent, ro, verdicts, title: str) -> bytes:
     from mitlc.learn.plots import png_bytes, rollout_figure
 
@@ -119,9 +125,10 @@ def _rollout_png(agent, ro, verdicts, title: str) -> bytes:
         names,
         ro.dt,
         agent.plant.state_names,
-        agent.u_max,
+        None,
         title,
         None if verdicts is None else list(verdicts[:show]),
+        _input_boxes(agent),
     )
     return png_bytes(fig)
 
@@ -234,7 +241,11 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     "(default 0.75; 0 = full from the start).",
 )
 @click.option(
-    "--sigma", type=float, default=None, help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL)."
+    "--sigma",
+    type=float,
+    default=None,
+    help="Exploration std of the input (default 0.3 u_max; 1 N for HyRL; a plant with several inputs takes "
+    "--set sigma_frac=F instead).",
 )
 @click.option(
     "--mask",
@@ -577,7 +588,7 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     type=click.Path(),
     default=None,
     help="Also write each rollout as a trace that 'mitlc check' reads: FILE.csv or FILE.npz for one "
-    "rollout, FILE_000.csv, FILE_001.csv, ... for several (.npz traces carry the inputs u too).",
+    "rollout, FILE_000.csv, FILE_001.csv, ... for several (.npz traces carry the inputs too: u, or u_NAME per input).",
 )
 @plant_file_option
 @handle_errors
@@ -647,7 +658,7 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
                 f"from each run's evaluation start, as mitlc train judged: {int(judged.sum())}/{agent.runs} "
                 f"(success rate {judged.mean():.2f}; --starts train shows them)"
             )
-    _write_traces(ro, agent.plant.state_names, trace_path)
+    _write_traces(ro, agent.plant.state_names, trace_path, agent.plant)
     if plot_path is not None:
         atomic_write(plot_path, _rollout_png(agent, ro, res.satisfied, f"{k}/{n} satisfy"), f"--plot {plot_path}")
 
@@ -704,10 +715,19 @@ def _print_rollouts(spec, ro, x0: np.ndarray, policy):
     return res
 
 
-def _write_traces(ro, names, trace_path) -> None:
-    """Each rollout as a trace ``mitlc check`` reads (``--trace``), and a line saying where."""
+def _write_traces(ro, names, trace_path, plant=None) -> None:
+    """Each rollout as a trace ``mitlc check`` reads (``--trace``), and a line saying where. A ``.npz``
+    trace carries the inputs too: ``u`` for a plant with one input bounded by ``u_max``, else
+    ``u_NAME`` per input (``u_v``, ``u_omega``)."""
     if trace_path is None:
         return
+
+    def inputs_of(actions: np.ndarray) -> dict[str, np.ndarray]:
+        if plant is None or plant.inputs is None:
+            return {"u": actions}
+        cols = actions[:, None] if actions.ndim == 1 else actions
+        return {f"u_{n}": cols[:, j] for j, n in enumerate(plant.input_names)}
+
     from mitlc.monitor.trace import write_trace
 
     n = ro.states.shape[0]
@@ -719,7 +739,7 @@ def _write_traces(ro, names, trace_path) -> None:
     try:
         for i, p in enumerate(paths):
             cols = {v: ro.states[i, :, j] for j, v in enumerate(names)}
-            write_trace(p, t, cols, {"u": ro.actions[i]})
+            write_trace(p, t, cols, inputs_of(ro.actions[i]))
             written.append(p)
     except MitlError:  # a failed write (a full disk): none of this command's new traces is left behind
         for p in written:
@@ -768,6 +788,6 @@ def _simulate_sb3(paths, spec_path, rollouts, seed, starts, plot_path, trace_pat
     k = int(res.satisfied.sum())
     where = f"fresh starts drawn from the initial set, seed {seed}"
     click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
-    _write_traces(ro, policy.plant.state_names, trace_path)
+    _write_traces(ro, policy.plant.state_names, trace_path, policy.plant)
     if plot_path is not None:
         atomic_write(plot_path, _rollout_png(policy, ro, res.satisfied, f"{k}/{n} satisfy"), f"--plot {plot_path}")

@@ -1,6 +1,6 @@
 """mitlc's plants as Gymnasium environments paying a spec's compiled reward: :class:`MitlPlantEnv`,
-registered as ``mitlc/Pendulum-v0`` and ``mitlc/MassDamper-v0`` (:data:`ENV_IDS`) when
-:mod:`mitlc.gym` is imported.
+registered as ``mitlc/Pendulum-v0``, ``mitlc/MassDamper-v0`` and ``mitlc/Unicycle-v0``
+(:data:`ENV_IDS`) when :mod:`mitlc.gym` is imported.
 """
 
 from __future__ import annotations
@@ -30,7 +30,9 @@ class MitlPlantEnv(MitlNetEnv, gym.Env):
     ``reset(options={"x0": x})`` starts at ``x``), its ``horizon`` the episode length
     (truncated there). Observations are ``{"obs": x, "marking": M}`` (plus ``"clocks"`` with
     nested intervals), or one flat ``Box`` with ``marking_obs="box"``
-    (:func:`plant_observation`); the action is the input ``u`` in ``[-u_max, u_max]``.
+    (:func:`plant_observation`); the action is the plant's inputs, a ``Box`` of ``m`` entries with
+    each input's box (one entry in ``[-u_max, u_max]`` for a plant bounded by ``u_max``; the
+    unicycle's ``[v, omega]`` in ``[-1, 1] x [-2, 2]``).
 
     ``info`` carries ``marking``, ``tau`` and the monitor's ``verdict`` as
     :class:`~mitlc.gym.MitlRewardWrapper`'s does, with the same ``verdict=`` option (``"step"``,
@@ -72,7 +74,10 @@ class MitlPlantEnv(MitlNetEnv, gym.Env):
         self.plant = PLANTS[plant]
         self.params = self.plant.params({k: v for k, v in s.plant_params})
         dt = float(self.params["dt"])
-        self.u_max = float(self.params["u_max"])
+        self.u_lo, self.u_hi = self.plant.input_box(self.params)
+        """The inputs' boxes, ``(m,)`` each: the action space's bounds, and what an action is clipped to."""
+        self.u_max = float(self.params["u_max"]) if "u_max" in self.params else None
+        """The input bound of a plant bounded by ``u_max`` (None for one that declares its inputs)."""
         self.steps = max(1, int(round(s.horizon / dt)))
         self._setup_net(rs, dt, self.steps, verdict)
         self._integrate = make_integrator(self.plant, self.params)
@@ -100,7 +105,9 @@ class MitlPlantEnv(MitlNetEnv, gym.Env):
             )
             self.observation_space = spaces.Box(low, top, dtype=np.float32)
         self.marking_offset = len(self.plant.state_names)
-        self.action_space = spaces.Box(-self.u_max, self.u_max, (1,), dtype=np.float32)
+        self.action_space = spaces.Box(
+            self.u_lo.astype(np.float32), self.u_hi.astype(np.float32), (self.plant.n_inputs,), dtype=np.float32
+        )
         self.render_mode = render_mode
         self._x = np.zeros((1, len(self.plant.state)))
 
@@ -144,14 +151,24 @@ class MitlPlantEnv(MitlNetEnv, gym.Env):
         return self._obs(), info
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
-        u = np.clip(np.asarray(action, dtype=float).reshape(-1)[:1], -self.u_max, self.u_max)
+        m = self.plant.n_inputs
+        a = np.asarray(action, dtype=float).reshape(-1)
+        if m == 1:
+            u = np.clip(a[:1], self.u_lo, self.u_hi)
+        else:
+            if a.shape != (m,):
+                raise InputError(
+                    f"the action has {a.size} entries; plant '{self.plant.name}' has {m} inputs "
+                    f"({', '.join(self.plant.input_names)})"
+                )
+            u = np.clip(a, self.u_lo, self.u_hi)[None, :]
         self._integrate(self._x, u)
         truncated = self._k + 1 >= self.steps
         reward, info = self._net_step(self._x[0].tolist(), truncated)
         return self._obs(), reward, False, truncated, info
 
 
-ENV_IDS = {"mitlc/Pendulum-v0": "pendulum", "mitlc/MassDamper-v0": "mass-damper"}
+ENV_IDS = {"mitlc/Pendulum-v0": "pendulum", "mitlc/MassDamper-v0": "mass-damper", "mitlc/Unicycle-v0": "unicycle"}
 """The registered environments of mitlc's own plants (registered when this module is imported)."""
 
 for _env_id, _plant in ENV_IDS.items():

@@ -38,7 +38,8 @@ class Sb3Policy(Policy):
     :class:`~mitlc.gym.MitlPlantEnv` shows them. Its state is the reward net's marking
     ``(B, places)``, as for SACPN; :meth:`act` builds the observation the environment would give
     from ``x``, the marking and the obligations' clocks, and asks the model for its
-    deterministic action, clipped to ``[-u_max, u_max]``. One model: ``runs`` is 1.
+    deterministic action, clipped to the inputs' boxes (``[-u_max, u_max]`` for a plant with one
+    input bounded by ``u_max``). One model: ``runs`` is 1.
     """
 
     def __init__(
@@ -64,7 +65,8 @@ class Sb3Policy(Policy):
         self.plant = PLANTS[s.plant_name]
         self.params = self.plant.params(dict(s.plant_params))
         self.dt = float(self.params["dt"])
-        self.u_max = float(self.params["u_max"])
+        self.u_lo, self.u_hi = self.plant.input_box(self.params)
+        self.u_max = float(self.params["u_max"]) if "u_max" in self.params else None
         self.n_steps = max(1, int(round(s.horizon / self.dt)))
         init = {r.var: (r.lo, r.hi) for r in s.init}
         self.init_ranges = [init.get(v, (0.0, 0.0)) for v in self.plant.state_names]
@@ -129,16 +131,25 @@ class Sb3Policy(Policy):
         return self.runtime.reset(np.atleast_2d(np.asarray(x0, dtype=float)))
 
     def act(self, x: np.ndarray, state: np.ndarray) -> np.ndarray:
-        """The model's deterministic inputs ``(B,)``, asked one row at a time: the same numbers as in
-        the environment (a batch goes through torch's matrix products, which round otherwise)."""
+        """The model's deterministic inputs ``(B,)`` (``(B, m)`` for a plant with ``m > 1`` inputs),
+        asked one row at a time: the same numbers as in the environment (a batch goes through
+        torch's matrix products, which round otherwise)."""
         obs = self.observation(x, state)
-        B = np.atleast_2d(x).shape[0]
-        u = np.empty(B)
+        B, m = np.atleast_2d(x).shape[0], self.plant.n_inputs
+        u = np.empty((B, m))
         for b in range(B):
             row = obs[b : b + 1] if isinstance(obs, np.ndarray) else {k: v[b : b + 1] for k, v in obs.items()}
             action, _ = self.model.predict(row, deterministic=True)
-            u[b] = float(np.asarray(action, dtype=float).reshape(-1)[0])
-        return np.clip(u, -self.u_max, self.u_max)
+            a = np.asarray(action, dtype=float).reshape(-1)
+            if a.size < m:
+                raise InputError(
+                    f"the model's action has {a.size} entries; plant '{self.plant.name}' has {m} inputs "
+                    f"({', '.join(self.plant.input_names)})",
+                    file=self.spec.path,
+                )
+            u[b] = a[:m]
+        u = np.clip(u, self.u_lo, self.u_hi)
+        return u[:, 0] if m == 1 else u
 
     def step(self, state: np.ndarray, x_next: np.ndarray) -> np.ndarray:
         self._k += 1
@@ -156,7 +167,7 @@ class Sb3Policy(Policy):
         B, N = x.shape[0], self.n_steps
         integrate = make_integrator(self.plant, self.params)
         states = np.empty((B, N + 1, x.shape[1]))
-        actions = np.empty((B, N))
+        actions = np.empty((B, N) if self.plant.n_inputs == 1 else (B, N, self.plant.n_inputs))
         codes = np.empty((B, N + 1), dtype=np.int64)
         rewards = np.empty((B, N))
         rt = self.runtime

@@ -283,6 +283,8 @@ def _check_meta(meta: dict[str, Any]) -> str:
         _names(meta["places"], "places")
         if "state_names" in meta:
             _names(meta["state_names"], "state_names")
+        if "inputs" in meta and not _names(meta["inputs"], "inputs"):
+            raise _Bad("inputs", "is an empty list, not the plant's inputs")
         for key in ("conjunction", "violations", "clock", "reward"):
             if meta.get(key) is not None:
                 _choice(meta[key], key, OPTIONS[key])
@@ -353,14 +355,20 @@ def _check_arrays(archive: NpzArchive, meta: dict[str, Any], kind: str, where: s
         if m.dtype.kind not in "fiu":
             raise InputError(f"damaged checkpoint: array '{name}' holds {m.dtype}, not real numbers", file=where)
     xi, theta, returns = heads["xi"].shape, heads["theta"].shape, heads["returns"].shape
-    if len(xi) != 3 or xi[0] != runs:
+    n_in = len(meta.get("inputs", ["u"])) if kind == "sacpn" else 1  # SACPN: an actor row per place and input
+    if n_in == 1 and (len(xi) != 3 or xi[0] != runs):
         raise InputError(
             f"damaged checkpoint: array 'xi' has shape {xi}, not (runs = {runs}, rows, features)", file=where
         )
-    rows = xi[1] + (1 if kind == "hyrl" else 0)  # HyRL's critic has a general row besides one per mode
-    if theta != (runs, rows, xi[2]):
+    if n_in > 1 and (len(xi) != 4 or xi[0] != runs or xi[2] != n_in):
         raise InputError(
-            f"damaged checkpoint: array 'theta' has shape {theta}, not {(runs, rows, xi[2])} (from 'xi')", file=where
+            f"damaged checkpoint: array 'xi' has shape {xi}, not (runs = {runs}, rows, inputs = {n_in}, features)",
+            file=where,
+        )
+    rows = xi[1] + (1 if kind == "hyrl" else 0)  # HyRL's critic has a general row besides one per mode
+    if theta != (runs, rows, xi[-1]):
+        raise InputError(
+            f"damaged checkpoint: array 'theta' has shape {theta}, not {(runs, rows, xi[-1])} (from 'xi')", file=where
         )
     if returns != (runs, trial):
         raise InputError(
@@ -405,6 +413,13 @@ def check_against(meta: dict[str, Any], spec: Spec, path: str | Path) -> None:
         raise InputError(
             f"the policy was trained on the state ({', '.join(recorded)}); the spec's plant "
             f"'{plant.name}' has ({', '.join(names)})",
+            file=str(path),
+        )
+    inputs = meta.get("inputs", ["u"])
+    if len(inputs) != plant.n_inputs:
+        raise InputError(
+            f"the policy was trained on the inputs ({', '.join(inputs)}); the spec's plant "
+            f"'{plant.name}' has ({', '.join(plant.input_names)})",
             file=str(path),
         )
     try:

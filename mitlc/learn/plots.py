@@ -68,17 +68,23 @@ def rollout_figure(
     u_max: float | None = None,
     title: str = "",
     verdicts: Sequence[bool] | None = None,
+    inputs: Sequence[tuple[str, float, float]] | None = None,
 ):
     """State, velocity and input against time for a few rollouts.
 
-    ``states (B, N+1, n)``, ``actions (B, N)``; ``regions (B, N+1)`` indexes
-    ``region_names``: the background of each panel is coloured by the marked
-    place of the first rollout's state region net (like Figures 3-7, 4-13).
+    ``states (B, N+1, n)``, ``actions (B, N)`` (or ``(B, N, m)`` for ``m`` inputs, a panel
+    each, named and bounded by ``inputs``: ``(name, lo, hi)`` per input); ``regions (B, N+1)``
+    indexes ``region_names``: the background of each panel is coloured by the marked place
+    of the first rollout's state region net (like Figures 3-7, 4-13).
     """
     B, N1, n = states.shape
+    acts = actions[:, :, None] if actions.ndim == 2 else actions
+    m = acts.shape[2]
+    if inputs is None and u_max is not None:
+        inputs = [("u", -u_max, u_max)]
     t = np.arange(N1) * dt
-    fig = _figure(figsize=(7.0, 2.0 * (n + 1) + 0.4))
-    axes = [fig.add_subplot(n + 1, 1, i + 1) for i in range(n + 1)]
+    fig = _figure(figsize=(7.0, 2.0 * (n + m) + 0.4))
+    axes = [fig.add_subplot(n + m, 1, i + 1) for i in range(n + m)]
     reg = regions[0]
     starts = np.flatnonzero(np.r_[True, reg[1:] != reg[:-1]])
     ends = np.r_[starts[1:], N1]
@@ -106,18 +112,24 @@ def rollout_figure(
                 t, y, style, lw=1.2 if b == 0 else 0.7, color="k" if b == 0 else None, alpha=1.0 if b == 0 else 0.6
             )
         axes[i].set_ylabel(state_names[i])
-    for b in range(B):
-        axes[-1].step(
-            t[:-1],
-            actions[b],
-            where="post",
-            lw=1.0 if b == 0 else 0.6,
-            color="k" if b == 0 else None,
-            alpha=1.0 if b == 0 else 0.6,
-        )
-    if u_max is not None:
-        axes[-1].set_ylim(-1.1 * u_max, 1.1 * u_max)
-    axes[-1].set_ylabel("u")
+    for j in range(m):
+        ax = axes[n + j]
+        for b in range(B):
+            ax.step(
+                t[:-1],
+                acts[b, :, j],
+                where="post",
+                lw=1.0 if b == 0 else 0.6,
+                color="k" if b == 0 else None,
+                alpha=1.0 if b == 0 else 0.6,
+            )
+        if inputs is not None:
+            name, lo, hi = inputs[j]
+            pad = 0.05 * (hi - lo)
+            ax.set_ylim(lo - pad, hi + pad)
+            ax.set_ylabel(name)
+        else:
+            ax.set_ylabel("u" if m == 1 else f"u[{j}]")
     axes[-1].set_xlabel("time [s]")
     axes[0].legend(loc="upper right", fontsize=7, title="marking (first rollout)", title_fontsize=7)
     if title:

@@ -2,7 +2,15 @@
 
 A plant declares its state variables with their bounds (used by the compiler's
 interval analysis and by the learner's features), which of them are angles
-(periodic), its parameters with defaults, and a vectorised ``step``.
+(periodic), its inputs with their boxes, its parameters with defaults, and a
+vectorised ``step``.
+
+Inputs: a plant that declares none has one, ``u``, in ``[-u_max, u_max]`` with
+``u_max`` a parameter (so a spec may set it: ``plant pendulum(u_max = 10)``); a
+plant with several (a unicycle's speed and turn rate) declares them as
+:class:`InputVar` s, each with its own box. The learners and the integrators pass
+``u`` as ``(R,)`` to a plant with one input and as ``(R, m)``, a column per
+input in the declared order, to a plant with ``m > 1``.
 
 To add a plant, build a :class:`Plant` and :func:`register` it (the shipped ones
 are registered by :mod:`mitlc.plants`, one module each):
@@ -23,7 +31,7 @@ import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -31,6 +39,7 @@ from mitlc.errors import InputError, MitlError
 
 __all__ = [
     "StateVar",
+    "InputVar",
     "Plant",
     "PLANTS",
     "register",
@@ -90,6 +99,69 @@ class StateVar:
         object.__setattr__(self, "hi", float(self.hi))
 
 
+@dataclass(frozen=True)
+class InputVar:
+    """One input of a plant: its name and its box ``lo <= u <= hi``.
+
+    The learners clip what they apply to the box and scale their exploration to its
+    half-width; the box need not be symmetric. Checked when built: a name, finite bounds
+    with ``lo < hi``.
+
+    >>> InputVar("omega", -2, 2)
+    InputVar(name='omega', lo=-2.0, hi=2.0)
+    >>> InputVar("v", 1.0, 1.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: input 'v': its box must be finite numbers with lo < hi, got [1, 1]
+    """
+
+    name: str
+    lo: float
+    hi: float
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ValueError(f"an input's name must be a name such as 'v' or 'omega', got {self.name!r}")
+        if not (_real(self.lo) and _real(self.hi) and math.isfinite(self.lo) and math.isfinite(self.hi)) or not (
+            self.lo < self.hi
+        ):
+            raise ValueError(
+                f"input '{self.name}': its box must be finite numbers with lo < hi, "
+                f"got [{_num(self.lo)}, {_num(self.hi)}]"
+            )
+        object.__setattr__(self, "lo", float(self.lo))
+        object.__setattr__(self, "hi", float(self.hi))
+
+
+def _inputs_of(value: object, where: str) -> tuple[InputVar, ...]:
+    """A plant's ``inputs`` as :class:`InputVar` s: each given as one or as ``(name, lo, hi)``;
+    a ``ValueError`` naming the plant and the entry otherwise."""
+    if isinstance(value, str | bytes) or not isinstance(value, Sequence):
+        raise ValueError(f"{where}: inputs must be a sequence of InputVar (or (name, lo, hi)), got {value!r}")
+    if not value:
+        raise ValueError(
+            f"{where}: inputs is empty: a plant needs at least one input "
+            "(leave inputs out for one input u bounded by the parameter u_max)"
+        )
+    out = []
+    for i, item in enumerate(value):
+        if isinstance(item, InputVar):
+            out.append(item)
+            continue
+        if isinstance(item, str | bytes) or not isinstance(item, Sequence) or len(item) != 3:
+            got = f"{len(item)} entries" if isinstance(item, Sequence) and not isinstance(item, str) else repr(item)
+            raise ValueError(f"{where}: input {i + 1} must be InputVar(name, lo, hi) or (name, lo, hi), got {got}")
+        try:
+            out.append(InputVar(*item))
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+    names = [v.name for v in out]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"{where}: input {', '.join(map(repr, twice))} is given twice")
+    return tuple(out)
+
+
 def _num(v: object) -> str:
     """A value for a message: numbers as ``%g``, anything else as its repr."""
     return f"{float(v):g}" if _real(v) else repr(v)  # type: ignore[arg-type]
@@ -97,11 +169,12 @@ def _num(v: object) -> str:
 
 @dataclass(frozen=True)
 class Plant:
-    """A plant: state variables, parameters and a batched one-step map.
+    """A plant: state variables, inputs, parameters and a batched one-step map.
 
-    ``dynamics(x, u, params) -> xdot`` works on arrays of shape ``(R, n)``;
-    :meth:`step` integrates it with RK4 over ``params['dt']``, wraps the
-    angles and clips bounded velocities.
+    ``dynamics(x, u, params) -> xdot`` works on arrays of shape ``(R, n)``, with ``u``
+    ``(R,)`` for one input and ``(R, m)`` for ``m`` (:attr:`inputs`); :meth:`step`
+    integrates it with RK4 over ``params['dt']``, clips the inputs to their boxes,
+    wraps the angles and clips bounded velocities.
     """
 
     name: str
@@ -133,6 +206,12 @@ class Plant:
     """An environment plant's state lines (:class:`mitlc.plants.gym_env.ObsVar`: each state
     variable read off the flattened observation); empty for an ODE plant."""
 
+    inputs: tuple[InputVar, ...] | None = None
+    """The inputs, each with its box (:class:`InputVar`, or ``(name, lo, hi)``), in the order of
+    ``u``'s columns; ``None`` (the default): one input ``u`` in ``[-u_max, u_max]``, ``u_max``
+    a parameter (so ``defaults`` needs it and a spec may set it). ``dynamics`` gets ``u`` as
+    ``(R,)`` with one input and ``(R, m)`` with several; a plant with inputs has no ``u_max``."""
+
     def __post_init__(self) -> None:
         """Refuse, when the plant is built, what would fail later (in a trainer, with a traceback)."""
         if not isinstance(self.name, str) or not self.name.strip():
@@ -158,7 +237,14 @@ class Plant:
             got = "none" if dt is None else _num(dt)
             raise ValueError(f"{where}: parameter 'dt' (seconds per step) must be a positive number, got {got}")
         u_max = self.defaults.get("u_max")
-        if u_max is None and self.make_simulator is None:
+        if self.inputs is not None:
+            object.__setattr__(self, "inputs", _inputs_of(self.inputs, where))
+            if u_max is not None:
+                raise ValueError(
+                    f"{where}: it declares its inputs ({', '.join(self.input_names)}), each with its box, and a "
+                    "parameter 'u_max', which would bound nothing: drop u_max from defaults"
+                )
+        elif u_max is None and self.make_simulator is None:
             raise ValueError(f"{where}: parameter 'u_max' (the input bound, |u| <= u_max) is missing from defaults")
         if u_max is not None and not u_max >= 0:
             raise ValueError(
@@ -190,6 +276,11 @@ class Plant:
             out = self.dynamics(x, u, params)
         except MitlError:
             raise
+        except IndexError as exc:  # most often an input (or a state column) it does not have
+            raise self._dynamics_fault(
+                f"its dynamics raised IndexError: {exc} (is it reading an input it does not have? {self._u_shape()})",
+                exc,
+            ) from None
         except Exception as exc:  # the user's code: any failure is one line
             raise self._dynamics_fault(f"its dynamics raised {type(exc).__name__}: {exc}", exc) from None
         shape = getattr(out, "shape", None)
@@ -204,6 +295,53 @@ class Plant:
                 f"(one row per copy, one column per state variable: {', '.join(self.state_names)})"
             )
         return out
+
+    def _u_shape(self) -> str:
+        """How ``dynamics`` gets ``u``, for a message."""
+        if self.n_inputs == 1:
+            return f"the plant has one input, {self.input_names[0]}: u is an array of shape (R,)"
+        cols = ", ".join(f"u[:, {i}] = {n}" for i, n in enumerate(self.input_names))
+        return f"the plant has {self.n_inputs} inputs: u is an array of shape (R, {self.n_inputs}), {cols}"
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """The inputs' names, in the order of ``u``'s columns (``("u",)`` for a plant bounded by ``u_max``)."""
+        return ("u",) if self.inputs is None else tuple(v.name for v in self.inputs)
+
+    @property
+    def n_inputs(self) -> int:
+        """``m``, the number of inputs: ``u`` is ``(R,)`` when it is 1, ``(R, m)`` otherwise."""
+        return 1 if self.inputs is None else len(self.inputs)
+
+    def input_box(self, params: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(lo, hi)``, each ``(m,)``: the inputs' boxes; for a plant without declared inputs
+        ``[-u_max, u_max]`` with ``u_max`` from ``params`` (default: the plant's defaults).
+
+        >>> import mitlc.plants
+        >>> [b.tolist() for b in PLANTS["pendulum"].input_box({"u_max": 10.0})]
+        [[-10.0], [10.0]]
+        """
+        if self.inputs is not None:
+            return np.array([v.lo for v in self.inputs]), np.array([v.hi for v in self.inputs])
+        p = self.defaults if params is None else params
+        if "u_max" not in p:
+            raise InputError(f"plant '{self.name}' has no input bound u_max")
+        u_max = float(p["u_max"])
+        return np.array([-u_max]), np.array([u_max])
+
+    def check_inputs(self, params: Mapping[str, float]) -> None:
+        """For a plant that declares its inputs: one step of one copy from the middle of the state
+        bounds with every input at the middle of its box. A dynamics that reads an input it does not
+        have (``u[:, 2]`` with two) fails here, as one line naming it, rather than silently in a
+        compiled kernel (which checks no bounds). A plant bounded by ``u_max`` is stepped as before."""
+        if self.stepped or self.inputs is None:
+            return
+        lo, hi = self.input_box(params)
+        mid = 0.5 * (lo + hi)
+        u = mid if self.n_inputs > 1 else mid[:1]
+        x = np.array([[0.5 * (v.lo + v.hi) for v in self.state]])
+        with np.errstate(all="ignore"):
+            self.dynamics_checked(x, u[None, :] if self.n_inputs > 1 else u, params)
 
     @property
     def stepped(self) -> bool:
@@ -235,9 +373,21 @@ class Plant:
         return out
 
     def step(self, x: np.ndarray, u: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
-        """One sample period of RK4; ``x`` is ``(R, n)``, ``u`` is ``(R,)``."""
+        """One sample period of RK4; ``x`` is ``(R, n)``, ``u`` is ``(R,)`` (one input) or ``(R, m)``,
+        clipped to the inputs' boxes."""
         dt = params["dt"]
-        u = np.clip(u, -params["u_max"], params["u_max"])
+        if self.inputs is None:
+            u = np.clip(u, -params["u_max"], params["u_max"])
+        else:
+            u = np.asarray(u, dtype=float)
+            want = (x.shape[0],) if self.n_inputs == 1 else (x.shape[0], self.n_inputs)
+            if u.shape != want:
+                raise InputError(
+                    f"plant '{self.name}': u has shape {u.shape}, expected {want} "
+                    f"(inputs: {', '.join(self.input_names)})"
+                )
+            lo, hi = self.input_box(params)
+            u = np.clip(u, lo, hi) if self.n_inputs > 1 else np.clip(u, lo[0], hi[0])
         f = self.dynamics_checked
         k1 = f(x, u, params)
         k2 = f(x + 0.5 * dt * k1, u, params)
@@ -330,14 +480,16 @@ def ode_dynamics(
     ``ode`` is the physics written once, over the state's *first* axis: ``x[i]`` is
     variable ``i`` (a scalar for one copy, a row of ``R`` values for a batch), ``p``
     the parameters in ``names`` order, and it writes ``xdot[i]`` into ``out[i]``. The
-    batched dynamics calls it on rows; :func:`rk4_kernel_step` compiles it for one copy.
+    input is ``u`` itself for a plant with one input, and ``u[j]`` is input ``j`` for a
+    plant with several (the same first-axis rule). The batched dynamics calls it on rows;
+    :func:`rk4_kernel_step` compiles it for one copy.
     """
     names = tuple(names)
 
     def dynamics(x: np.ndarray, u: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
         p = np.array([float(params[n]) for n in names])
         out = np.empty((x.shape[1], x.shape[0]))
-        ode(x.T, u, p, out)
+        ode(x.T, u.T, p, out)  # several inputs: u[j] is input j's row, as x[i] is variable i's
         return out.T
 
     return dynamics
@@ -353,7 +505,8 @@ def register(plant: Plant) -> Plant:
 
 
 def make_integrator(plant: Plant, params: Mapping[str, float]) -> Callable[[np.ndarray, np.ndarray], None]:
-    """An in-place one-step map ``step(x, u)`` equal to ``plant.step``.
+    """An in-place one-step map ``step(x, u)`` equal to ``plant.step`` (``u``: ``(R,)`` for one
+    input, ``(R, m)`` for ``m``).
 
     A plant with a :attr:`Plant.fast_step` (the pendulum: a fused RK4 on the two
     state rows with the constants of (A-2) folded, about twice as fast, agreeing
@@ -375,25 +528,28 @@ def rk4_kernel_step(
 ) -> Callable[[Plant, Mapping[str, float], Callable], tuple[Callable, np.ndarray, int]]:
     """A :attr:`Plant.kernel_step` from the plant's ``ode`` (see :func:`ode_dynamics`): the
     RK4 of :meth:`Plant.step` for one copy, with its operations in the same order (so the
-    same numbers to the bit, tested), then the same wraps and clips."""
+    same numbers to the bit, tested), then the same wraps and clips. The step takes ``u`` as
+    a number for a plant with one input and as an array ``(m,)`` for one with several."""
     names = tuple(names)
 
     def build(plant: Plant, params: Mapping[str, float], jit: Callable) -> tuple[Callable, np.ndarray, int]:
-        n = len(plant.state)
+        n, m = len(plant.state), plant.n_inputs
         f = jit(ode)
-        # consts: dt, u_max, then per variable (kind, lo, hi) with kind 1 = angle, 2 = clipped, then p
+        # consts: dt, the inputs' lo (m) and hi (m), per variable (kind, lo, hi) with kind
+        # 1 = angle, 2 = clipped, then p
         kinds = [1.0 if v.periodic else 2.0 if v.name in plant.clip else 0.0 for v in plant.state]
         rows = [[k, v.lo, v.hi] for k, v in zip(kinds, plant.state, strict=True)]
+        lo, hi = plant.input_box(params)
         consts = np.array(
-            [float(params["dt"]), float(params["u_max"])]
+            [float(params["dt"]), *lo.tolist(), *hi.tolist()]
             + [c for row in rows for c in row]
-            + [float(params[m]) for m in names]
+            + [float(params[name]) for name in names]
         )
+        at = 1 + 2 * m  # where the rows start
 
-        def step(x: np.ndarray, u: float, c: np.ndarray, w: np.ndarray) -> None:
-            dt, u_max = c[0], c[1]
-            p = c[2 + 3 * n :]
-            u = np.minimum(np.maximum(u, -u_max), u_max)  # np.clip's order
+        def rk4(x: np.ndarray, u: Any, c: np.ndarray, w: np.ndarray) -> None:
+            dt = c[0]
+            p = c[at + 3 * n :]
             k1, k2, k3, k4, y = w[0:n], w[n : 2 * n], w[2 * n : 3 * n], w[3 * n : 4 * n], w[4 * n : 5 * n]
             f(x, u, p, k1)
             for i in range(n):
@@ -408,13 +564,28 @@ def rk4_kernel_step(
             for i in range(n):
                 x[i] = x[i] + dt / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
             for i in range(n):
-                kind = c[2 + 3 * i]
+                kind = c[at + 3 * i]
                 if kind == 1.0:
                     x[i] = (x[i] + np.pi) % (2 * np.pi) - np.pi
                 elif kind == 2.0:
-                    x[i] = np.minimum(np.maximum(x[i], c[3 + 3 * i]), c[4 + 3 * i])
+                    x[i] = np.minimum(np.maximum(x[i], c[at + 1 + 3 * i]), c[at + 2 + 3 * i])
 
-        return jit(step), consts, 5 * n
+        rk4_j = jit(rk4)
+
+        def step(x: np.ndarray, u: float, c: np.ndarray, w: np.ndarray) -> None:
+            """One input: ``u`` a number, clipped to its box (np.clip's order)."""
+            rk4_j(x, np.minimum(np.maximum(u, c[1]), c[2]), c, w)
+
+        def step_inputs(x: np.ndarray, u: np.ndarray, c: np.ndarray, w: np.ndarray) -> None:
+            """Several inputs: ``u (m,)``, each clipped to its box into the scratch's last ``m``."""
+            v = w[5 * n : 5 * n + m]
+            for j in range(m):
+                v[j] = np.minimum(np.maximum(u[j], c[1 + j]), c[1 + m + j])
+            rk4_j(x, v, c, w)
+
+        if m == 1:
+            return jit(step), consts, 5 * n
+        return jit(step_inputs), consts, 5 * n + m
 
     return build
 
@@ -423,8 +594,8 @@ class Simulator(Protocol):
     """What a trainer resets and steps: ``B`` copies of a plant in lock-step.
 
     ``reset(rngs)`` returns one start per generator, ``(B, n)``, drawn from copy
-    ``b``'s own ``rngs[b]``; ``step(x, u)`` applies ``u (B,)`` and writes the next
-    states into ``x`` in place. ``settable`` says whether a rollout may start
+    ``b``'s own ``rngs[b]``; ``step(x, u)`` applies ``u (B,)`` (``(B, m)`` for a plant
+    with ``m`` inputs) and writes the next states into ``x`` in place. ``settable`` says whether a rollout may start
     anywhere (an ODE plant) or only where the last reset left the copies
     (:meth:`start` checks it).
     """
@@ -447,6 +618,7 @@ class OdeSimulator:
     def __init__(self, plant: Plant, params: Mapping[str, float], init: Mapping[str, tuple[float, float]]) -> None:
         self.plant = plant
         self.ranges = [init.get(v, (0.0, 0.0)) for v in plant.state_names]
+        plant.check_inputs(params)  # a dynamics reading an input it does not have: one line, now
         self.step = make_integrator(plant, params)
 
     def reset(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:

@@ -39,7 +39,6 @@ and a run folder says which option to pass again rather than importing it.
 from __future__ import annotations
 
 import importlib
-import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -48,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.errors import InputError, TrainingError
-from mitlc.plants.base import Plant, StateVar, wrap_angle
+from mitlc.plants.base import InputVar, Plant, StateVar, wrap_angle
 
 __all__ = [
     "GYM_PREFIX",
@@ -62,6 +61,7 @@ __all__ = [
     "env_dt",
     "env_info",
     "action_bound",
+    "action_inputs",
     "gym_plant",
     "GymSimulator",
     "MAX_RESETS",
@@ -111,6 +111,9 @@ class EnvInfo:
     """Why the action space is no input for mitlc's learners (None when it is)."""
     dt: float | None
     dt_where: str
+    inputs: tuple[InputVar, ...] | None = None
+    """The inputs when the action is any other finite ``Box`` (several entries, or one not
+    symmetric): ``a0, a1, ...``, one per entry of the flattened action, each with its bounds."""
 
 
 def _gymnasium() -> Any:
@@ -223,20 +226,36 @@ def env_dt(env: Any) -> tuple[Any, str]:
 
 
 def action_bound(space: Any) -> tuple[float | None, str | None]:
-    """``(u_max, None)`` for a one-entry symmetric finite ``Box``, else ``(None, why not)``."""
+    """``(u_max, None)`` for a one-entry symmetric finite ``Box``; ``(None, None)`` for any other
+    finite ``Box`` (its entries are inputs: :func:`action_inputs`); else ``(None, why not)``."""
     spaces = _gymnasium().spaces
     if not isinstance(space, spaces.Box):
         return None, (
-            f"its actions are {space}, not continuous: mitlc's learners drive one continuous input "
-            "(a Box action space with one entry); a discrete-action environment can still pay the "
+            f"its actions are {space}, not continuous: mitlc's learners drive continuous inputs "
+            "(a Box action space); a discrete-action environment can still pay the "
             "compiled reward to another learner through mitlc.gym.MitlRewardWrapper"
         )
-    if int(np.prod(space.shape)) != 1:
-        return None, f"its action space {space} has {int(np.prod(space.shape))} entries; SACPN drives one input"
-    lo, hi = float(np.asarray(space.low).reshape(-1)[0]), float(np.asarray(space.high).reshape(-1)[0])
-    if not (math.isfinite(lo) and math.isfinite(hi) and hi > 0 and abs(lo + hi) <= 1e-9 * hi):
-        return None, f"its action bounds [{lo:g}, {hi:g}] are not a finite symmetric [-u_max, u_max]"
-    return hi, None
+    low, high = np.asarray(space.low, dtype=float).reshape(-1), np.asarray(space.high, dtype=float).reshape(-1)
+    if low.size == 0:
+        return None, f"its action space {space} has no entries: a plant needs at least one input"
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
+        shown = ", ".join(f"[{a:g}, {b:g}]" for a, b in zip(low[:4], high[:4], strict=False))
+        more = ", ..." if low.size > 4 else ""
+        return None, f"its action bounds {shown}{more} are not finite boxes with low < high"
+    lo, hi = float(low[0]), float(high[0])
+    if low.size == 1 and hi > 0 and abs(lo + hi) <= 1e-9 * hi:
+        return hi, None
+    return None, None
+
+
+def action_inputs(space: Any) -> tuple[InputVar, ...] | None:
+    """The inputs of a finite ``Box`` action space that is not one symmetric entry: ``a0, a1, ...``,
+    one per entry of the flattened action with its bounds; None for any other space."""
+    u_max, problem = action_bound(space)
+    if u_max is not None or problem is not None:
+        return None
+    low, high = np.asarray(space.low, dtype=float).reshape(-1), np.asarray(space.high, dtype=float).reshape(-1)
+    return tuple(InputVar(f"a{i}", float(a), float(b)) for i, (a, b) in enumerate(zip(low, high, strict=True)))
 
 
 def env_info(env_id: str, kwargs: Mapping[str, float] | None = None) -> EnvInfo:
@@ -261,6 +280,7 @@ def env_info(env_id: str, kwargs: Mapping[str, float] | None = None) -> EnvInfo:
             action_problem=problem,
             dt=None if dt is None else float(dt),
             dt_where=where,
+            inputs=action_inputs(env.action_space),
         )
     finally:
         env.close()
@@ -275,7 +295,8 @@ def _shortest(a: Any) -> np.ndarray:
 
 
 def gym_plant(env_id: str, kwargs: Mapping[str, float], observe: Sequence[ObsVar], dt: float, info: EnvInfo) -> Plant:
-    """The plant of a Gymnasium environment: the mapped state variables, ``dt`` and ``u_max``."""
+    """The plant of a Gymnasium environment: the mapped state variables, ``dt``, and ``u_max`` (one
+    symmetric action entry) or the inputs (any other finite ``Box``: one per entry)."""
     defaults = {"dt": float(dt)}
     if info.u_max is not None:
         defaults["u_max"] = float(info.u_max)
@@ -292,7 +313,8 @@ def gym_plant(env_id: str, kwargs: Mapping[str, float], observe: Sequence[ObsVar
     def simulator(plant: Plant, params: Mapping[str, float], init: Mapping[str, tuple[float, float]]) -> GymSimulator:
         if info.action_problem is not None:
             raise TrainingError(f"cannot train on '{name}': {info.action_problem}")
-        return GymSimulator(env_id, make_kwargs, obs, init, info.u_max or 0.0)
+        box = plant.input_box(params) if info.inputs is not None else None
+        return GymSimulator(env_id, make_kwargs, obs, init, info.u_max or 0.0, box)
 
     mapping = ", ".join(f"{o.var.name} = {o.text}" for o in obs)
     return Plant(
@@ -303,6 +325,7 @@ def gym_plant(env_id: str, kwargs: Mapping[str, float], observe: Sequence[ObsVar
         description=f"Gymnasium environment {env_id} ({mapping}; actions {info.action})",
         make_simulator=simulator,
         observation=obs,
+        inputs=info.inputs,
     )
 
 
@@ -323,7 +346,9 @@ class GymSimulator:
     ``reset(rngs)`` seeds copy ``b`` from ``rngs[b]`` (so a run's numbers do not
     depend on how many runs there are), rejects starts outside ``init``, and
     returns the states; ``step(x, u)`` applies ``u`` and writes the new states into
-    ``x``, keeping a copy whose episode ended in its last state.
+    ``x``, keeping a copy whose episode ended in its last state. ``u`` is ``(B,)``,
+    clipped to ``[-u_max, u_max]``, or with ``box = (lo, hi)`` (an action of several
+    entries) ``(B, m)``, each entry clipped to its bounds.
     """
 
     settable = False
@@ -336,9 +361,11 @@ class GymSimulator:
         observe: Sequence[ObsVar],
         init: Mapping[str, tuple[float, float]],
         u_max: float,
+        box: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         self.env_id, self.kwargs, self.observe = check_env_id(env_id), dict(kwargs), tuple(observe)
         self.u_max = float(u_max)
+        self.box = box
         names = [o.var.name for o in self.observe]
         cols = [(names.index(v), lo, hi) for v, (lo, hi) in init.items() if v in names]
         self._init = cols
@@ -365,7 +392,7 @@ class GymSimulator:
             self._envs[B] = env
             self._flat_space = env.single_observation_space
             self._box = isinstance(self._flat_space, gym.spaces.Box)
-            self._action = np.zeros((B, 1), dtype=env.single_action_space.dtype)
+            self._action = np.zeros((B, *env.single_action_space.shape), dtype=env.single_action_space.dtype)
         return env
 
     def _states(self, obs: Any, B: int) -> np.ndarray:
@@ -421,7 +448,10 @@ class GymSimulator:
         if env is None or B not in self._done:
             raise TrainingError(f"'{self.env_id}': step before reset (batch of {B})")
         a = self._action
-        a[:, 0] = np.clip(u, -self.u_max, self.u_max)
+        if self.box is None:
+            a.reshape(B, -1)[:, 0] = np.clip(u, -self.u_max, self.u_max)
+        else:
+            a.reshape(B, -1)[:] = np.clip(np.asarray(u).reshape(B, -1), self.box[0], self.box[1])
         obs, _, terminated, truncated, _ = env.step(a)
         done = self._done[B]
         new = self._states(obs, B)

@@ -314,6 +314,12 @@ class HybridLearner:
                 f"HyRL integrates its plant from chosen states; '{plant.name}' can only be reset and stepped "
                 "(train it with SACPN: a spec with a formula)"
             )
+        if plant.inputs is not None:
+            raise TrainingError(
+                f"HyRL drives one input u bounded by the parameter u_max; plant '{plant.name}' declares "
+                f"{plant.n_inputs} input{'s' if plant.n_inputs > 1 else ''} ({', '.join(plant.input_names)}) "
+                "(train it with SACPN: a spec with a formula)"
+            )
         self.spec, self.plant, self.settings = spec, plant, settings
         self.automaton = automaton if automaton is not None else compile_requirements(spec)
         self.runs, self.seed = int(runs), int(seed)

@@ -29,7 +29,7 @@ There is one algorithm written twice, vectorised and scalar, and nothing may dri
   bits with numpy held to its baseline, ``NPY_DISABLE_CPU_FEATURES``, and a tolerance
   otherwise).
 
-Scope: ODE plants with a ``kernel_step``, RBF features without warped axes, nets
+Scope: ODE plants with a ``kernel_step`` (any number of inputs), RBF features without warped axes, nets
 whose transitions and rewards are fully tabulated (no timed obligations). The
 predicates are compiled from their syntax trees (data, never text) to Python
 source by :func:`mitlc.runtime.atoms.atom_source`. Anything else trains on the numpy path
@@ -114,16 +114,26 @@ def rbf_kernel(jit_fn: Callable) -> Callable:
     return jit_fn(rbf)
 
 
-def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Callable:
+def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool = True) -> Callable:
     """The fused trial for one plant step and one atom-code function, compiled by ``jit_fn``.
 
     ``trial(x, noise, code0, xi, theta, ret, next_code, clock, reward_tab, reward_full,
-    marked, marked_c, pen, pen_left, pc, fc..., scalars, flags)`` runs every run's
-    steps of Algorithm 1 as :meth:`~mitlc.learn.sacpn.Sacpn._trial`'s ``plain``
-    branch does, updating ``x``, ``xi``, ``theta`` and ``ret`` in place.
+    marked, marked_c, pen, pen_left, pc, fc..., scalars, u_lo, u_hi, ..., flags)`` runs every
+    run's steps of Algorithm 1 as :meth:`~mitlc.learn.sacpn.Sacpn._trial`'s ``plain``
+    branch does, updating ``x``, ``xi``, ``theta`` and ``ret`` in place. ``xi`` is
+    ``(R, P, m, F)`` and ``noise`` ``(N, R, m)`` for ``m`` inputs, each saturated to its own
+    box ``[u_lo, u_hi]``; ``plant_step`` takes ``u`` as a number when ``one_input`` (the
+    :attr:`~mitlc.plants.base.Plant.kernel_step` of a plant with one input), else as ``(m,)``.
     """
     psum = pairwise_sum_for(jit_fn)
     rbf = rbf_kernel(jit_fn)
+    if one_input:
+        scalar_step = plant_step
+
+        def step_one(x, u, c, w):
+            scalar_step(x, u[0], c, w)
+
+        plant_step = jit_fn(step_one)
 
     def dot(w, rows, K, phi, F, prod, tk):
         # sum over the K marked rows of w . phi, each sum and the sum over rows pairwise
@@ -163,7 +173,8 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
         gl,
         a_c,
         a_a,
-        u_max,
+        u_lo,
+        u_hi,
         inv_k,
         inv_kc,
         current,
@@ -172,7 +183,7 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
         known,
         full,
     ):
-        R, P, F = xi.shape[0], xi.shape[1], xi.shape[2]
+        R, P, m, F = xi.shape[0], xi.shape[1], xi.shape[2], xi.shape[3]
         N = noise.shape[0]
         K, KC = marked.shape[1], marked_c.shape[1]
         phi = np.empty(F)
@@ -182,6 +193,7 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
         g = np.empty(centres.shape)
         w = np.empty(nwork)
         e = np.empty((P, F)) if current else np.empty((1, F))
+        u, u_sat, a, du, coef = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
         for r in range(R):
             x = X[r]
             xr, th = xi[r], theta[r]
@@ -189,18 +201,20 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
             scale = 1.0
             code = code0[r]
             rbf(x, counts, periodic, lo, hi, kw, centres, g, phi)
-            u = dot_j(xr, marked[code], K, phi, F, prod, tk) * inv_k
+            for i in range(m):
+                u[i] = dot_j(xr[:, i], marked[code], K, phi, F, prod, tk) * inv_k
             for k in range(N):
-                # act: u_k = pi(x_k) + du_k, saturated
-                nz = noise[k, r]
-                u_sat = u
-                if applied:
-                    u_sat = np.maximum(np.minimum(u, u_max), -u_max)
-                    a = np.maximum(np.minimum(u_sat + nz, u_max), -u_max)
-                    du = a - u_sat
-                else:
-                    a = u + nz
-                    du = nz
+                # act: u_k = pi(x_k) + du_k, each input saturated to its box
+                for i in range(m):
+                    nz = noise[k, r, i]
+                    if applied:
+                        u_sat[i] = np.maximum(np.minimum(u[i], u_hi[i]), u_lo[i])
+                        a[i] = np.maximum(np.minimum(u_sat[i] + nz, u_hi[i]), u_lo[i])
+                        du[i] = a[i] - u_sat[i]
+                    else:
+                        u_sat[i] = u[i]
+                        a[i] = u[i] + nz
+                        du[i] = nz
                 # the plant and the net move
                 plant_step(x, a, pc, w)
                 code1 = next_code[clock[k], code, atoms(x)]
@@ -214,11 +228,12 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
                     delta += dot_j(th, marked_c[code1], KC, phi_next, F, prod, tk) * (gamma * inv_kc)
                 if known:
                     delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
-                # actor
-                coef = delta * du
-                if applied:
-                    over = (u - u_sat) * coef
-                    coef *= 1.0 if over <= 0.0 else 0.0
+                # actor, per input
+                for i in range(m):
+                    coef[i] = delta * du[i]
+                    if applied:
+                        over = (u[i] - u_sat[i]) * coef[i]
+                        coef[i] *= 1.0 if over <= 0.0 else 0.0
                 # critic
                 scale *= gl
                 if scale < 1e-100:
@@ -227,11 +242,12 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
                             e[i, f] *= scale
                     scale = 1.0
                 if current:
-                    coef *= a_a * inv_k
-                    for j in range(K):
-                        row = marked[code, j]
-                        for f in range(F):
-                            xr[row, f] += coef * phi[f]
+                    for i in range(m):
+                        c_i = coef[i] * (a_a * inv_k)
+                        for j in range(K):
+                            row = marked[code, j]
+                            for f in range(F):
+                                xr[row, i, f] += c_i * phi[f]
                     c_e = inv_kc / scale
                     for j in range(KC):
                         row = marked_c[code, j]
@@ -242,11 +258,12 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
                         for f in range(F):
                             th[i, f] += e[i, f] * sv
                 else:
-                    coef *= a_a
-                    for j in range(K):
-                        row = marked[code1, j]
-                        for f in range(F):
-                            xr[row, f] += coef * phi[f]
+                    for i in range(m):
+                        c_i = coef[i] * a_a
+                        for j in range(K):
+                            row = marked[code1, j]
+                            for f in range(F):
+                                xr[row, i, f] += c_i * phi[f]
                     c_e = 1.0 / scale
                     for f in range(F):
                         e[0, f] += phi[f] * c_e
@@ -258,7 +275,8 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable) -> Cal
                 # next policy output with Xi_k+1
                 code = code1
                 phi, phi_next = phi_next, phi
-                u = dot_j(xr, marked[code], K, phi, F, prod, tk) * inv_k
+                for i in range(m):
+                    u[i] = dot_j(xr[:, i], marked[code], K, phi, F, prod, tk) * inv_k
 
     return jit_fn(trial)
 

@@ -39,6 +39,11 @@ the reasons):
   which equals ``exp(-(q - c)^2 / (2 w^2))`` to second order and wraps.
 * **Exploration**: ``du ~ N(0, sigma^2)`` independent per step;
   ``sigma = sigma_frac * u_max`` unless given.
+* **Several inputs** (a plant that declares them, :class:`~mitlc.plants.base.InputVar`):
+  one actor output per input, ``Xi`` with an input axis ``(runs, places, inputs,
+  features)``; each input is saturated (and protected from wind-up) at its own box and
+  explored with its own ``sigma_frac`` x the box's half-width; the TD error and the
+  critic are shared.
 * **Violation penalties** (``violation_value``, ``penalty_ramp``; only with
   ``violations = permanent | counted``).  After the first violation the
   permanent charge is a known constant per step, so the critic is given its
@@ -128,10 +133,12 @@ class SacpnSettings(Settings):
     for the features only. Names the plant does not have are ignored."""
 
     sigma: float | None = None
-    """Exploration standard deviation of the input; ``None``: ``sigma_frac * u_max``."""
+    """Exploration standard deviation of the input; ``None``: ``sigma_frac * u_max``. A plant
+    with several inputs takes no one ``sigma`` (refused): each input's is from ``sigma_frac``."""
 
     sigma_frac: float = 0.3
-    """Exploration as a fraction of the input bound when ``sigma`` is not given."""
+    """Exploration as a fraction of the input bound when ``sigma`` is not given (of each input's
+    half-range, ``(hi - lo) / 2``, for a plant that declares its inputs)."""
 
     trial_s: float | None = None
     """Trial duration in seconds; ``None``: the spec's ``horizon``, else 3 s (Table 4-4)."""
@@ -235,8 +242,9 @@ class SacpnSettings(Settings):
 
 @dataclass
 class Rollout:
-    """One batch of trajectories: ``states (R, N+1, n)``, ``actions (R, N)``,
-    marking ``codes (R, N+1)`` and ``rewards (R, N)``; ``dt`` the sample time."""
+    """One batch of trajectories: ``states (R, N+1, n)``, ``actions (R, N)`` (``(R, N, m)`` for a
+    plant with ``m > 1`` inputs), marking ``codes (R, N+1)`` and ``rewards (R, N)``; ``dt`` the
+    sample time."""
 
     states: np.ndarray
     actions: np.ndarray
@@ -322,24 +330,45 @@ class Sacpn:
         self.rs, self.spec, self.plant, self.settings = rs, spec, plant, settings
         self.runs, self.seed = int(runs), int(seed)
         self.params = plant.params({k: v for k, v in spec.plant_params})
-        if "u_max" not in self.params:
+        if plant.inputs is None and "u_max" not in self.params:
             if plant.stepped:
                 try:
                     plant.simulator(self.params)  # says why an environment has no input bound
                 except MitlError as exc:
                     raise exc.located(spec.path) from None
             raise TrainingError(
-                f"plant '{plant.name}' has no input bound u_max: SACPN drives one bounded input", file=spec.path
+                f"plant '{plant.name}' has no input bound u_max: SACPN drives bounded inputs", file=spec.path
             )
         if settings.dt is not None:
             self.params["dt"] = float(settings.dt)
         self.dt = float(self.params["dt"])
-        self.u_max = float(self.params["u_max"])
-        self.sigma = float(settings.sigma) if settings.sigma is not None else settings.sigma_frac * self.u_max
-        if not self.sigma <= MAX_MAGNITUDE:  # sigma_frac x a huge u_max: the noise would overflow
+        self.n_inputs = plant.n_inputs
+        """``m``: one actor output per input; ``u`` is ``(R,)`` when it is 1, ``(R, m)`` otherwise."""
+        self.u_lo, self.u_hi = plant.input_box(self.params)
+        """The inputs' boxes, ``(m,)`` each: the policy is clipped to them (``[-u_max, u_max]`` for one input
+        bounded by ``u_max``)."""
+        self.u_max = float(max(-self.u_lo[0], self.u_hi[0])) if self.n_inputs == 1 else None
+        """The input bound ``|u| <= u_max`` of a plant with one input (None with several: see :attr:`u_lo`)."""
+        half = 0.5 * self.u_hi - 0.5 * self.u_lo  # [-u_max, u_max]: u_max exactly (and no overflow)
+        if settings.sigma is not None and self.n_inputs > 1:
             raise TrainingError(
-                f"sigma_frac {settings.sigma_frac:g} x u_max {self.u_max:g} is an exploration sigma of "
-                f"{self.sigma:g}, more than the {MAX_MAGNITUDE:g} supported",
+                f"sigma is the exploration of one input; plant '{plant.name}' has {self.n_inputs} "
+                f"({', '.join(plant.input_names)})",
+                hint="give sigma_frac, the exploration as a fraction of each input's half-range",
+            )
+        self.sigmas = np.full(1, float(settings.sigma)) if settings.sigma is not None else settings.sigma_frac * half
+        """The exploration's standard deviation per input, ``(m,)``: ``sigma``, or ``sigma_frac`` times
+        each box's half-width."""
+        self.sigma: float | np.ndarray = float(self.sigmas[0]) if self.n_inputs == 1 else self.sigmas
+        """:attr:`sigmas` as a number for a plant with one input."""
+        if not np.all(self.sigmas <= MAX_MAGNITUDE):  # sigma_frac x a huge u_max: the noise would overflow
+            big = int(np.argmax(self.sigmas))
+            raise TrainingError(
+                f"sigma_frac {settings.sigma_frac:g} x {plant.input_names[big]}'s half-range {half[big]:g} is an "
+                f"exploration sigma of {self.sigmas[big]:g}, more than the {MAX_MAGNITUDE:g} supported"
+                if plant.inputs is not None
+                else f"sigma_frac {settings.sigma_frac:g} x u_max {half[0]:g} is an exploration sigma of "
+                f"{self.sigmas[0]:g}, more than the {MAX_MAGNITUDE:g} supported",
                 hint="give sigma itself (--sigma)",
             )
         horizon = settings.trial_s if settings.trial_s is not None else (spec.horizon or 3.0)
@@ -391,10 +420,13 @@ class Sacpn:
         assert settings.rbf is not None  # resolved
         self.features = RbfFeatures.for_state(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
-        need = 4 * self.runs * self.n_places * self.n_features * 8  # actor, critic, trace, scratch
+        n_in = self.n_inputs
+        need = (n_in + 3) * self.runs * self.n_places * self.n_features * 8  # actor (per input), critic, trace, scratch
         if need > MAX_LEARNER_BYTES:
+            inputs = f" x {n_in} inputs" if n_in > 1 else ""
             raise TrainingError(
-                f"{self.runs} runs x {self.n_places} places x {self.n_features} features need {need / 2**30:.1f} GiB "
+                f"{self.runs} runs x {self.n_places} places x {self.n_features} features{inputs} need "
+                f"{need / 2**30:.1f} GiB "
                 f"of learner arrays, more than the {MAX_LEARNER_BYTES / 2**30:.0f} GiB supported",
                 hint="fewer runs (train them in several processes: mitlc sweep) or a coarser rbf grid",
             )
@@ -408,7 +440,9 @@ class Sacpn:
         self._clock = [self.runtime.clock_code((k + 1) * self.dt) for k in range(self.n_steps)]
 
         R, P, F = self.runs, self.n_places, self.n_features
-        self.xi = np.zeros((R, P, F))
+        self.xi = np.zeros(self.actor_shape)
+        """The actor's parameters: ``(runs, places, features)`` for a plant with one input, and
+        ``(runs, places, inputs, features)`` with several (a row per place and input)."""
         self.theta = np.zeros((R, P, F))
         self.trial = 0
         self.ramp_trials: int | None = None  # fixed by the first train() (penalty_ramp x planned trials)
@@ -423,6 +457,18 @@ class Sacpn:
         self.eval_rngs = [np.random.Generator(np.random.PCG64(p[1])) for p in pairs]
         self._snapshot: _Snapshot | None = None
         self._choose_kernel()
+
+    @property
+    def actor_shape(self) -> tuple[int, ...]:
+        """The shape of :attr:`xi`: ``(R, P, F)``, or ``(R, P, m, F)`` with ``m > 1`` inputs."""
+        R, P, F, m = self.runs, self.n_places, self.n_features, self.n_inputs
+        return (R, P, F) if m == 1 else (R, P, m, F)
+
+    def _actor_rows(self) -> np.ndarray:
+        """:attr:`xi` as ``(R * P, m, F)``, a view (updates through it are the learner's)."""
+        if not self.xi.flags.c_contiguous:
+            self.xi = np.ascontiguousarray(self.xi)
+        return self.xi.reshape(self.runs * self.n_places, self.n_inputs, self.n_features)
 
     def _choose_kernel(self) -> None:
         """Pick the trial's path (``settings.kernel``): :attr:`kernel` is ``numpy`` or
@@ -455,11 +501,13 @@ class Sacpn:
         plant, rt = self.plant, self.runtime
         assert plant.kernel_step is not None and rt.tables is not None and rt.tables.reward is not None
         plain_step, pc, nwork = plant.kernel_step(plant, self.params, fk.identity)  # pc, nwork: whatever jit
-        key = (jit, plant.name, plant.kernel_step, len(plant.state), atom_source(rt.preds, rt.columns))
+        one = self.n_inputs == 1
+        key = (jit, plant.name, plant.kernel_step, len(plant.state), one, atom_source(rt.preds, rt.columns))
         trial = _KERNELS.get(key)
         if trial is None:
             if jit is fk.identity or jit is fk.jit:
-                plain = fk.trial_kernel(plain_step, compile_atoms(rt.preds, rt.columns, fk.identity), fk.identity)
+                atoms = compile_atoms(rt.preds, rt.columns, fk.identity)
+                plain = fk.trial_kernel(plain_step, atoms, fk.identity, one)
                 if jit is fk.identity:
                     trial = plain
                 else:  # compiled once per machine, through the disk cache
@@ -468,7 +516,7 @@ class Sacpn:
                     trial = jitcache.load(plain)
             if trial is None:  # compiled in memory, for this process
                 step = plant.kernel_step(plant, self.params, jit)[0]
-                trial = fk.trial_kernel(step, compile_atoms(rt.preds, rt.columns, jit), jit)
+                trial = fk.trial_kernel(step, compile_atoms(rt.preds, rt.columns, jit), jit, one)
             _KERNELS[key] = trial
         self._kernel_fn = trial  # the compiled (or plain) trial itself, for inspection
         feats = self.features
@@ -492,6 +540,7 @@ class Sacpn:
         marked_c = np.ascontiguousarray(self._marked_c, dtype=np.int64)
         reward_full = np.ascontiguousarray(tables.reward, dtype=float)
         pen_left = self._pen_left if self._known else np.zeros(self.n_steps + 1)
+        u_lo, u_hi = np.ascontiguousarray(self.u_lo, dtype=float), np.ascontiguousarray(self.u_hi, dtype=float)
         first = [True]
 
         def run() -> np.ndarray:
@@ -509,10 +558,11 @@ class Sacpn:
             x, noise = self._trial_start()
             code0 = np.asarray(rt.reset_code(x), dtype=np.int64)
             ret = np.zeros(self.runs)
+            xi = self._actor_rows().reshape(self.runs, self.n_places, self.n_inputs, self.n_features)
             trial(
-                x, noise, code0, self.xi, self.theta, ret, tables.next_code, clock, reward_tab, reward_full,
+                x, noise, code0, xi, self.theta, ret, tables.next_code, clock, reward_tab, reward_full,
                 marked, marked_c, pen, pen_left, pc, nwork, *fc,
-                st.gamma, st.gamma * st.lam, st.alpha_c, st.alpha_a, self.u_max,
+                st.gamma, st.gamma * st.lam, st.alpha_c, st.alpha_a, u_lo, u_hi,
                 1.0 / self.n_tokens, 1.0 / self.n_tokens_c,
                 st.mask == "current", st.saturation == "applied", bool(st.bootstrap_timeout), bool(self._known),
                 s_pen >= 1.0,
@@ -522,14 +572,15 @@ class Sacpn:
         return run
 
     def _trial_start(self) -> tuple[np.ndarray, np.ndarray]:
-        """A trial's initial states ``(R, n)`` and exploration ``(N, R)``, drawn from the runs'
-        generators in the one order both paths use."""
-        N, R = self.n_steps, self.runs
+        """A trial's initial states ``(R, n)`` and exploration ``(N, R, m)``, drawn from the runs'
+        generators in the one order both paths use (run by run, step by step, input by input:
+        with one input, the numbers one ``standard_normal(N)`` per run gives)."""
+        N, R, m = self.n_steps, self.runs, self.n_inputs
         x = np.ascontiguousarray(self.sample_init(self.rngs), dtype=float)
-        noise = np.empty((N, R))
+        noise = np.empty((N, R, m))
         for i, g in enumerate(self.rngs):
-            noise[:, i] = g.standard_normal(N)
-        noise *= self.sigma
+            noise[:, i, :] = g.standard_normal((N, m))
+        noise *= self.sigmas
         return x, noise
 
     # ------------------------------------------------------------ helpers
@@ -547,14 +598,19 @@ class Sacpn:
         return (self._marked_c if critic else self._marked)[code] + offset
 
     def policy(self, x: np.ndarray, code: np.ndarray, xi: np.ndarray | None = None) -> np.ndarray:
-        """Greedy input ``pi(x, M)`` clipped to the input bound, ``(R,)``."""
+        """Greedy input ``pi(x, M)`` clipped to the inputs' boxes: ``(R,)`` for a plant with one
+        input, ``(R, m)`` with several."""
         xi = self.xi if xi is None else xi
-        R = x.shape[0]
+        R, m = x.shape[0], self.n_inputs
         phi = self.features(x)
         offset = (np.arange(R) * self.n_places)[:, None]
-        rows = xi.reshape(-1, self.n_features)[self._flat(code, offset)]
-        u = np.einsum("rkf,rf->r", rows, phi) / self.n_tokens
-        return np.clip(u, -self.u_max, self.u_max)
+        flat = self._flat(code, offset)
+        if m == 1:
+            u = np.einsum("rkf,rf->r", xi.reshape(-1, self.n_features)[flat], phi) / self.n_tokens
+            return np.clip(u, self.u_lo[0], self.u_hi[0])
+        rows = xi.reshape(-1, m, self.n_features)[flat]  # (R, K, m, F)
+        u = np.stack([np.einsum("rkf,rf->r", rows[:, :, i], phi) for i in range(m)], axis=1) / self.n_tokens
+        return np.clip(u, self.u_lo, self.u_hi)
 
     def value(self, x: np.ndarray, code: np.ndarray) -> np.ndarray:
         """Critic ``V(x, M)``, ``(R,)``."""
@@ -670,7 +726,7 @@ class Sacpn:
         plain = dense and not timed
         gamma, gl = st.gamma, st.gamma * st.lam
         a_c, a_a = st.alpha_c, st.alpha_a
-        u_max = self.u_max
+        m, u_lo, u_hi = self.n_inputs, self.u_lo, self.u_hi  # each input saturated to its own box
         current = st.mask == "current"
         applied = st.saturation == "applied"
         inv_k, inv_kc = 1.0 / K, 1.0 / KC
@@ -687,7 +743,7 @@ class Sacpn:
         x[...], noise = self._trial_start()
 
         theta = self.theta
-        xi_f = self.xi.reshape(R * P, F)
+        xi_f = self._actor_rows()  # (R * P, m, F)
         th_f = theta.reshape(R * P, F)
         offset = (np.arange(R) * P)[:, None]
         # critic trace, stored scaled: E = scale * E_hat (lazy decay by gamma * lambda)
@@ -713,8 +769,10 @@ class Sacpn:
         phi = features(x)
         phi_next = np.empty_like(phi)
         ret = np.zeros(R)
-        u, a, du, coef, v0, v1, u_sat, delta, sv, over = (np.empty(R) for _ in range(10))
-        keep = np.zeros(R, dtype=bool)
+        u, a, du, coef, u_sat, over = (np.empty((R, m)) for _ in range(6))  # an entry per run and input
+        v0, v1, delta, sv, u_i = (np.empty(R) for _ in range(5))
+        keep = np.zeros((R, m), dtype=bool)
+        a_in = a[:, 0] if m == 1 else a  # what the plant takes: (R,) for one input, (R, m) for several
         bootstrap = st.bootstrap_timeout
         known = self._known
         if known:
@@ -722,7 +780,8 @@ class Sacpn:
         reduce = np.add.reduce
         prods: dict[tuple[int, ...], np.ndarray] = {}
         sv_b = sv[:, None] if (one_c or not current) else sv[:, None, None]
-        coef_b = coef[:, None] if one else coef[:, None, None]
+        coef_b = coef[:, :, None] if one else coef[:, None, :, None]  # like the gathered rows (R, [K,] m, F)
+        delta_b = delta[:, None]
 
         def dot(rows: np.ndarray, ph: np.ndarray, out: np.ndarray, single: bool) -> None:
             # products, then numpy's pairwise sums (not BLAS, whose order depends on the CPU):
@@ -740,23 +799,31 @@ class Sacpn:
         def rows_of(ph: np.ndarray, single: bool) -> np.ndarray:  # phi shaped like the gathered rows
             return ph if single else ph[:, None, :]
 
-        dot(xi_f[flat], phi, u, one)
-        u *= inv_k
+        def actor_rows_of(ph: np.ndarray) -> np.ndarray:  # phi shaped like the actor's rows (R, [K,] m, F)
+            return ph[:, None, :] if one else ph[:, None, None, :]
+
+        def act(rows: np.ndarray, ph: np.ndarray) -> None:  # u = pi(x) with the marked rows, input by input
+            for i in range(m):
+                dot(xi_f[rows, i], ph, u_i, one)  # summed into a contiguous row: numpy's pairwise order
+                u[:, i] = u_i
+            multiply(u, inv_k, out=u)
+
+        act(flat, phi)
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             for k in range(N):
                 # act: u_k = pi(x_k) + du_k, saturated
                 if applied:
-                    minimum(u, u_max, out=u_sat)
-                    maximum(u_sat, -u_max, out=u_sat)
+                    minimum(u, u_hi, out=u_sat)
+                    maximum(u_sat, u_lo, out=u_sat)
                     add(u_sat, noise[k], out=a)
-                    minimum(a, u_max, out=a)
-                    maximum(a, -u_max, out=a)
+                    minimum(a, u_hi, out=a)
+                    maximum(a, u_lo, out=a)
                     subtract(a, u_sat, out=du)
                 else:
                     add(u, noise[k], out=a)
                     du[:] = noise[k]
                 # the plant and the net move
-                integrate(x, a)
+                integrate(x, a_in)
                 code1 = next_code[clock[k], code, atom_code(x)]
                 if paid is not None:  # sparse, robustness, robustness-window: the monitor pays
                     if timed:
@@ -795,8 +862,8 @@ class Sacpn:
                     delta += v1
                 if known:  # V_pen = -pen[code] G[k]: + pen_k G_k - gamma pen_k+1 G_k+1
                     delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
-                # actor: xi += alpha_a delta du grad pi, grad pi = m phi(x_k)
-                multiply(delta, du, out=coef)
+                # actor, per input j: xi_j += alpha_a delta du_j grad pi_j, grad pi_j = m phi(x_k)
+                multiply(delta_b, du, out=coef)
                 if applied:  # never move a saturated output further past the bound:
                     subtract(u, u_sat, out=over)  # > 0 above the bound, < 0 below, else 0
                     over *= coef
@@ -807,17 +874,16 @@ class Sacpn:
                 if scale < 1e-100:
                     e_hat *= scale
                     scale = 1.0
-                ph = rows_of(phi, one)
                 if current:
                     coef *= a_a * inv_k
-                    xi_f[flat] += coef_b * ph
+                    xi_f[flat] += coef_b * actor_rows_of(phi)
                     e_hat_f[flat_c] += (inv_kc / scale) * rows_of(phi, one_c)
                     multiply(delta, a_c * scale, out=sv)
                     multiply(e_hat, sv[:, None, None], out=tmp)
                     theta += tmp
                 else:
                     coef *= a_a
-                    xi_f[flat1] += coef_b * ph
+                    xi_f[flat1] += coef_b * actor_rows_of(phi)
                     e_hat += phi * (1.0 / scale)
                     multiply(delta, a_c * scale, out=sv)
                     multiply(e_hat, sv_b, out=tmp)
@@ -825,8 +891,7 @@ class Sacpn:
                 # next policy output with Xi_k+1
                 code, flat, flat_c = code1, flat1, flat1_c
                 phi, phi_next = phi_next, phi
-                dot(xi_f[flat], phi, u, one)
-                u *= inv_k
+                act(flat, phi)
         return ret
 
     # ------------------------------------------------------------ evaluation
@@ -838,11 +903,11 @@ class Sacpn:
         """
         x = np.array(x0, dtype=float)
         self.sim.start(x)  # a Gymnasium plant rolls out from where its last reset left it
-        B, N = x.shape[0], self.n_steps
+        B, N, m = x.shape[0], self.n_steps, self.n_inputs
         run = np.arange(B) % self.runs
         xi = self.xi[run]
         states = np.empty((B, N + 1, x.shape[1]))
-        actions = np.empty((B, N))
+        actions = np.empty((B, N) if m == 1 else (B, N, m))
         codes = np.empty((B, N + 1), dtype=np.int64)
         rewards = np.empty((B, N))
         rt = self.runtime
@@ -854,8 +919,13 @@ class Sacpn:
         for k in range(N):
             u = self.policy(x, code, xi)
             if not greedy:
-                noise = np.array([g.standard_normal() for g in rngs]) * self.sigma  # type: ignore[union-attr]
-                u = np.clip(u + noise, -self.u_max, self.u_max)
+                assert rngs is not None
+                if m == 1:
+                    noise = np.array([g.standard_normal() for g in rngs]) * self.sigmas[0]
+                    u = np.clip(u + noise, self.u_lo[0], self.u_hi[0])
+                else:
+                    noise = np.array([g.standard_normal(m) for g in rngs]) * self.sigmas
+                    u = np.clip(u + noise, self.u_lo, self.u_hi)
             self.integrate(x, u)
             code1 = rt.step_code(code, x, (k + 1) * self.dt)
             rewards[:, k] = rt.reward_code(code, code1, x) if paid is None else paid.step(x, k == N - 1)
@@ -890,6 +960,8 @@ class Sacpn:
             "reward": self.rs.options.reward,
             "diverged": self.diverged.tolist(),
         }
+        if self.plant.inputs is not None:  # declared inputs (none recorded: one input u bounded by u_max)
+            meta["inputs"] = list(self.plant.input_names)
         return {
             "xi": self.xi,
             "theta": self.theta,
@@ -899,7 +971,13 @@ class Sacpn:
 
     def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
         meta = json.loads(str(d["meta"]))
-        shape = (self.runs, self.n_places, self.n_features)
+        inputs = meta.get("inputs", ["u"])  # a checkpoint from before inputs were recorded: one input
+        if len(inputs) != self.n_inputs:
+            raise InputError(
+                f"checkpoint was trained on a plant with the inputs ({', '.join(inputs)}); plant '{self.plant.name}' "
+                f"has ({', '.join(self.plant.input_names)})"
+            )
+        shape = self.actor_shape
         if meta["runs"] != self.runs or tuple(d["xi"].shape) != shape:
             raise InputError(f"checkpoint holds {meta['runs']} runs of shape {tuple(d['xi'].shape)}, expected {shape}")
         if meta["places"] != list(self.rs.net.place_names):
