@@ -46,11 +46,9 @@ def run_both(f: A.Formula, bits: np.ndarray, dt: float) -> None:
             (ROOT_LOCAL if i == tree.root else NODE_LOCAL)[where[i]] * strides[j] for j, i in enumerate(temporal)
         )
         for r in range(R):
-            code = STEP(
-                k, int(bits[r, k]), 0, arrays.nodes, arrays.truth, arrays.temporal, arrays.local, arrays.init, *work[r]
-            )
+            code = STEP(k, int(bits[r, k]), 0, arrays.nodes, arrays.truth, arrays.temporal, *work[r])
             assert code == want[r], (str(f), k, r)
-            st_r = work[r][0]
+            st_r = work[r][0]  # its state: rows VAL .. MISS_FROM
             for g, node in enumerate(tree.nodes):
                 assert np.array_equal(st_r[ok.VAL, g, : rel[g] + 1], state.values[g][r, : rel[g] + 1]), (str(f), k, g)
                 if node.op != "state":

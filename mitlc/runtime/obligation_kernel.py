@@ -73,9 +73,17 @@ instance at ``s`` needs this node's positions ``[s + WLO, s + WHI]``."""
 # rows of a run's state (4, nodes, N+1)
 VAL, LIVE, NEED, PENDING_FROM, MISS_TO, MISS_FROM = range(6)
 ROWS = 6
+# a run's working memory (MEM_ROWS, nodes, N+2): its state, then the state it starts from (INIT ..
+# INIT + ROWS - 1), then per node the positions decided and died at the latest sample
+INIT, DECIDED, DIED = ROWS, 2 * ROWS, 2 * ROWS + 1
+MEM_ROWS = 2 * ROWS + 2
+# rows of its registers (4, max(nodes, sub-nets)): how many positions DECIDED and DIED hold per
+# node, and per timed sub-net the two forward pointers of its places (OPEN_FROM, STARTED_FROM)
+N_DECIDED, N_DIED, OPEN_FROM, STARTED_FROM = range(4)
 
 # columns of the temporal table (one row per timed sub-net)
-T_NODE, T_ROOT, T_STRIDE, T_SIZE = range(4)
+T_NODE, T_ROOT, T_STRIDE, T_SIZE, T_LOCAL = range(5)
+TCOL = T_LOCAL + 5
 
 
 @dataclass(frozen=True)
@@ -87,10 +95,8 @@ class ObligationArrays:
     truth: np.ndarray
     """``(nodes, atom codes)`` uint8: each state part's truth per atom code (0 for other nodes)."""
     temporal: np.ndarray
-    """``(sub-nets, 4)`` int64: per timed sub-net its node, whether it is a root, its marking code's
-    stride and size (mixed radix)."""
-    local: np.ndarray
-    """``(2, 5)`` int64: engine place (``IDLE .. FAILED``) to local place index, below the root and at it."""
+    """``(sub-nets, TCOL)`` int64: per timed sub-net its node, whether it is a root, its marking code's
+    stride and size (mixed radix), and the local place index of each engine place (``IDLE .. FAILED``)."""
     init: np.ndarray
     """``(ROWS, nodes, N+2)`` int32: a run's state before its first sample (:func:`initial_state`)."""
     subnets: np.ndarray
@@ -106,8 +112,7 @@ def empty() -> ObligationArrays:
     return ObligationArrays(
         np.zeros((0, NCOL), dtype=np.int64),
         np.zeros((0, 1), dtype=np.uint8),
-        np.zeros((0, 4), dtype=np.int64),
-        np.stack([NODE_LOCAL, ROOT_LOCAL]).astype(np.int64),
+        np.zeros((0, TCOL), dtype=np.int64),
         np.zeros((ROWS, 0, 2), dtype=np.int32),
         np.zeros(0, dtype=np.int64),
     )
@@ -172,7 +177,8 @@ def build(
                 row[VLO], row[VHI] = lo, hi
                 row[WLO], row[WHI] = lo, hi
         for node, s in tn.subnets:
-            temporal.append([base + node, int(node == tree.root), int(strides[s]), int(sizes[s])])
+            local = ROOT_LOCAL if node == tree.root else NODE_LOCAL
+            temporal.append([base + node, int(node == tree.root), int(strides[s]), int(sizes[s]), *map(int, local)])
             subnets.append(int(s))
     nodes = np.array(rows, dtype=np.int64).reshape(len(rows), NCOL)
     codes = np.arange(1 << len(atoms), dtype=np.int64)
@@ -181,11 +187,8 @@ def build(
     for g, f in enumerate(formulas):
         if f is not None:
             truth[g] = np.broadcast_to(eval_state(f, bits), codes.shape)
-    local = np.stack([NODE_LOCAL, ROOT_LOCAL]).astype(np.int64)
-    temp = np.array(temporal, dtype=np.int64).reshape(len(temporal), 4)
-    return ObligationArrays(
-        nodes, truth, temp, local, initial_state(nodes, truth, N), np.array(subnets, dtype=np.int64)
-    )
+    temp = np.array(temporal, dtype=np.int64).reshape(len(temporal), TCOL)
+    return ObligationArrays(nodes, truth, temp, initial_state(nodes, truth, N), np.array(subnets, dtype=np.int64))
 
 
 def until_value(st: np.ndarray, left: int, right: int, s: int, lo: int, hi: int, N: int, neg: bool) -> int:
@@ -286,18 +289,16 @@ def find(st: np.ndarray, row: int, g: int, x: int) -> int:
     return x
 
 
-def scratch(arrays: ObligationArrays) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(st, buf, cnt, ptr)``: the working arrays of :func:`obligation_kernel`'s ``step`` for ``arrays``."""
-    rows, G, W = arrays.init.shape
-    return (
-        np.empty((rows, G, W), dtype=np.int32),
-        np.empty((2, G, W), dtype=np.int32),
-        np.zeros((2, G), dtype=np.int64),
-        np.zeros((2, arrays.temporal.shape[0]), dtype=np.int64),
-    )
+def scratch(arrays: ObligationArrays) -> tuple[np.ndarray, np.ndarray]:
+    """``(mem, regs)``: a run's working memory for :func:`obligation_kernel`'s ``step`` (its state
+    to start from in place), and its registers."""
+    _, G, W = arrays.init.shape
+    mem = np.zeros((MEM_ROWS, G, W), dtype=np.int32)
+    mem[INIT : INIT + ROWS] = arrays.init
+    return mem, np.zeros((4, max(G, arrays.temporal.shape[0], 1)), dtype=np.int64)
 
 
-def no_obligations(k, ac, code, nodes, truth, temporal, local, init, st, buf, cnt, ptr):
+def no_obligations(k, ac, code, nodes, truth, temporal, mem, regs):
     """:func:`obligation_kernel`'s ``step`` for a net without timed obligations: ``code`` itself."""
     return code
 
@@ -305,95 +306,103 @@ def no_obligations(k, ac, code, nodes, truth, temporal, local, init, st, buf, cn
 def obligation_kernel(jit_fn: Callable) -> Callable:
     """``step`` compiled by ``jit_fn`` (the identity: plain Python).
 
-    ``step(k, ac, code, nodes, truth, temporal, local, init, st, buf, cnt, ptr)`` takes sample ``k``
-    (atom code ``ac``) into one run's state ``st`` (sample 0: copied from ``init`` first) and returns
-    marking code ``code`` with every timed sub-net's token moved to its place after it (what
-    :meth:`~mitlc.runtime.NetRuntime.advance_code` does): ``nodes``, ``truth``, ``temporal``,
-    ``local`` and ``init`` are :class:`ObligationArrays`'s, ``st``, ``buf``, ``cnt`` and ``ptr``
-    :func:`scratch`'s. One run at a time: the samples of a run in order, from 0.
+    ``step(k, ac, code, nodes, truth, temporal, mem, regs)`` takes sample ``k`` (atom code ``ac``)
+    into one run's state (sample 0: a new run) and returns marking code ``code`` with every timed
+    sub-net's token moved to its place after it (what :meth:`~mitlc.runtime.NetRuntime.advance_code`
+    does): ``nodes``, ``truth`` and ``temporal`` are :class:`ObligationArrays`'s, ``mem`` and ``regs``
+    :func:`scratch`'s. One run at a time: the samples of a run in order, from 0. (One function, few
+    arrays: a call from the trial kernel costs little.)
     """
     until = jit_fn(until_value)
     find_j = jit_fn(find)
 
-    def obl_observe(k, ac, nodes, truth, st, buf, cnt):
+    def obl_step(k, ac, code, nodes, truth, temporal, mem, regs):
+        if k == 0:  # a new run: the state before any sample
+            for i in range(ROWS):
+                for g in range(mem.shape[1]):
+                    for t in range(mem.shape[2]):
+                        mem[i, g, t] = mem[INIT + i, g, t]
+            for j in range(regs.shape[1]):
+                regs[OPEN_FROM, j] = 0
+                regs[STARTED_FROM, j] = 0
         G = nodes.shape[0]
-        N = st.shape[2] - 2
+        N = mem.shape[2] - 2
         for g in range(G):
-            cnt[0, g] = 0
-            cnt[1, g] = 0
+            regs[N_DECIDED, g] = 0
+            regs[N_DIED, g] = 0
         # values, children first
         for g in range(G):
             op = nodes[g, OP]
             rel = nodes[g, REL]
             if op == STATE:  # its value at k
                 if nodes[g, KNOWN] == 0 and k <= rel:
-                    st[VAL, g, k] = TRUE if truth[g, ac] else FALSE
-                    buf[0, g, 0] = k
-                    cnt[0, g] = 1
+                    mem[VAL, g, k] = TRUE if truth[g, ac] else FALSE
+                    mem[DECIDED, g, 0] = k
+                    regs[N_DECIDED, g] = 1
                 continue
             left, right = nodes[g, LEFT], nodes[g, RIGHT]
             n = 0
             if op in (AND, OR):  # the positions decided below, again
                 for side in range(2):
                     c = left if side == 0 else right
-                    for j in range(cnt[0, c]):
-                        t = buf[0, c, j]
-                        if t > rel or st[VAL, g, t] != PENDING:
+                    for j in range(regs[N_DECIDED, c]):
+                        t = mem[DECIDED, c, j]
+                        if t > rel or mem[VAL, g, t] != PENDING:
                             continue
-                        a, b = st[VAL, left, t], st[VAL, right, t]
+                        a, b = mem[VAL, left, t], mem[VAL, right, t]
                         if op == AND:
                             v = a if a < b else b
                         else:
                             v = a if a > b else b
                         if v != PENDING:
-                            st[VAL, g, t] = v
-                            buf[0, g, n] = t
+                            mem[VAL, g, t] = v
+                            mem[DECIDED, g, n] = t
                             n += 1
             elif op in (EVENTUALLY, GLOBALLY):
                 # a hit decides every pending start time whose window holds it; a miss decides those
                 # whose window now lies inside the run of misses around it
                 lo, hi = nodes[g, LO], nodes[g, HI]
                 hit = TRUE if op == EVENTUALLY else FALSE
-                for j in range(cnt[0, left]):
-                    t = buf[0, left, j]
+                for j in range(regs[N_DECIDED, left]):
+                    t = mem[DECIDED, left, j]
                     s0 = t - hi
                     if s0 < 0:
                         s0 = 0
                     s1 = t - lo
                     if s1 > rel:
                         s1 = rel
-                    if st[VAL, left, t] == hit:
+                    if mem[VAL, left, t] == hit:
                         v = hit
                     else:
                         v = TRUE - hit
-                        st[MISS_TO, g, t] = t + 1
-                        st[MISS_FROM, g, t + 1] = t
-                        a = find_j(st, MISS_FROM, g, t + 1)  # the run of misses: [a, b]
-                        b = find_j(st, MISS_TO, g, t) - 1
+                        mem[MISS_TO, g, t] = t + 1
+                        mem[MISS_FROM, g, t + 1] = t
+                        a = find_j(mem, MISS_FROM, g, t + 1)  # the run of misses: [a, b]
+                        b = find_j(mem, MISS_TO, g, t) - 1
                         if s0 < a - lo:
                             s0 = a - lo
                         if b < N and s1 > b - hi:
                             s1 = b - hi
                     if s0 > s1:
                         continue
-                    s = find_j(st, PENDING_FROM, g, s0)
+                    s = find_j(mem, PENDING_FROM, g, s0)
                     while s <= s1:
-                        st[VAL, g, s] = v
-                        buf[0, g, n] = s
+                        mem[VAL, g, s] = v
+                        mem[DECIDED, g, n] = s
                         n += 1
-                        st[PENDING_FROM, g, s] = s + 1
-                        s = find_j(st, PENDING_FROM, g, s + 1)
+                        mem[PENDING_FROM, g, s] = s + 1
+                        s = find_j(mem, PENDING_FROM, g, s + 1)
             else:  # U, R: the start times the changed positions reach, scanned again
                 lo, hi = nodes[g, LO], nodes[g, HI]
                 d0, d1 = N + 1, -1
-                for j in range(cnt[0, left]):
-                    t = buf[0, left, j]
+                for j in range(regs[N_DECIDED, left]):
+                    t = mem[DECIDED, left, j]
                     if t - hi < d0:
                         d0 = t - hi
                     if t > d1:
                         d1 = t
-                for j in range(cnt[0, right]):
-                    t = buf[0, right, j]
+                for j in range(regs[N_DECIDED, right]):
+                    t = mem[DECIDED, right, j]
                     if t - hi < d0:
                         d0 = t - hi
                     if t - lo > d1:
@@ -403,25 +412,25 @@ def obligation_kernel(jit_fn: Callable) -> Callable:
                 if d1 > rel:
                     d1 = rel
                 for s in range(d0, d1 + 1):
-                    if st[VAL, g, s] == PENDING:
-                        v = until(st, left, right, s, lo, hi, N, op == RELEASE)
+                    if mem[VAL, g, s] == PENDING:
+                        v = until(mem, left, right, s, lo, hi, N, op == RELEASE)
                         if v != PENDING:
-                            st[VAL, g, s] = v
-                            buf[0, g, n] = s
+                            mem[VAL, g, s] = v
+                            mem[DECIDED, g, n] = s
                             n += 1
-            cnt[0, g] = n
+            regs[N_DECIDED, g] = n
         # deaths, parents first: decided now, or no longer needed by a live instance of the parent
         for g in range(G - 1, -1, -1):
             if nodes[g, OP] == STATE:
                 continue
-            nd = cnt[1, g]
-            for j in range(cnt[0, g]):
-                s = buf[0, g, j]
-                if st[LIVE, g, s] != 0:
-                    st[LIVE, g, s] = 0
-                    buf[1, g, nd] = s
+            nd = regs[N_DIED, g]
+            for j in range(regs[N_DECIDED, g]):
+                s = mem[DECIDED, g, j]
+                if mem[LIVE, g, s] != 0:
+                    mem[LIVE, g, s] = 0
+                    mem[DIED, g, nd] = s
                     nd += 1
-            cnt[1, g] = nd
+            regs[N_DIED, g] = nd
             if nd == 0:
                 continue
             for side in range(2):
@@ -429,23 +438,21 @@ def obligation_kernel(jit_fn: Callable) -> Callable:
                 if c < 0 or nodes[c, OP] == STATE:  # a state part's liveness is never read
                     continue
                 wlo, whi, relc = nodes[c, WLO], nodes[c, WHI], nodes[c, REL]
-                m = cnt[1, c]
+                m = regs[N_DIED, c]
                 for j in range(nd):
-                    s = buf[1, g, j]
+                    s = mem[DIED, g, j]
                     t1 = s + whi
                     if t1 > relc:
                         t1 = relc
                     for t in range(s + wlo, t1 + 1):
-                        x = st[NEED, c, t] - 1
-                        st[NEED, c, t] = x
-                        if x == 0 and st[LIVE, c, t] != 0:
-                            st[LIVE, c, t] = 0
-                            buf[1, c, m] = t
+                        x = mem[NEED, c, t] - 1
+                        mem[NEED, c, t] = x
+                        if x == 0 and mem[LIVE, c, t] != 0:
+                            mem[LIVE, c, t] = 0
+                            mem[DIED, c, m] = t
                             m += 1
-                cnt[1, c] = m
-
-    def obl_code(k, code, nodes, temporal, local, st, ptr):
-        N = st.shape[2] - 2
+                regs[N_DIED, c] = m
+        # the places of the tokens after sample k, into the marking code
         nxt = k + 1
         for j in range(temporal.shape[0]):
             g = temporal[j, T_NODE]
@@ -456,26 +463,26 @@ def obligation_kernel(jit_fn: Callable) -> Callable:
                 if a < 0:
                     a = 0
                 b = nxt - lo
-                p = ptr[0, j]
+                p = regs[OPEN_FROM, j]
                 if p < a:
                     p = a
-                while p <= b and st[LIVE, g, p] == 0:
+                while p <= b and mem[LIVE, g, p] == 0:
                     p += 1
-                ptr[0, j] = p
+                regs[OPEN_FROM, j] = p
                 opened = p <= b
-            q = ptr[1, j]  # a live instance started by now
-            while q <= k and st[LIVE, g, q] == 0:
+            q = regs[STARTED_FROM, j]  # a live instance started by now
+            while q <= k and mem[LIVE, g, q] == 0:
                 q += 1
-            ptr[1, j] = q
+            regs[STARTED_FROM, j] = q
             if temporal[j, T_ROOT] != 0:
-                v = st[VAL, g, 0]
+                v = mem[VAL, g, 0]
                 if v == TRUE:
                     place = MET
                 elif v == FALSE:
                     place = FAILED
                 else:
                     place = OPEN if opened else WAIT
-                here = local[1, place]
+                here = temporal[j, T_LOCAL + place]
             else:
                 if opened:
                     place = OPEN
@@ -483,23 +490,9 @@ def obligation_kernel(jit_fn: Callable) -> Callable:
                     place = WAIT
                 else:
                     place = IDLE
-                here = local[0, place]
+                here = temporal[j, T_LOCAL + place]
             stride = temporal[j, T_STRIDE]
             code += (here - (code // stride) % temporal[j, T_SIZE]) * stride
         return code
-
-    observe, code_of = jit_fn(obl_observe), jit_fn(obl_code)
-
-    def obl_step(k, ac, code, nodes, truth, temporal, local, init, st, buf, cnt, ptr):
-        if k == 0:  # a new run: the state before any sample
-            for i in range(st.shape[0]):
-                for g in range(st.shape[1]):
-                    for t in range(st.shape[2]):
-                        st[i, g, t] = init[i, g, t]
-            for i in range(ptr.shape[0]):
-                for j in range(ptr.shape[1]):
-                    ptr[i, j] = 0
-        observe(k, ac, nodes, truth, st, buf, cnt)
-        return code_of(k, code, nodes, temporal, local, st, ptr)
 
     return jit_fn(obl_step)

@@ -187,12 +187,8 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, timed:
         o_nodes,
         o_truth,
         o_temporal,
-        o_local,
-        o_init,
-        o_state,
-        o_buf,
-        o_cnt,
-        o_ptr,
+        o_mem,
+        o_regs,
         timed,
     ):
         R, P, F = xi.shape[0], xi.shape[1], xi.shape[2]
@@ -213,9 +209,7 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, timed:
             code = code0[r]
             if timed:  # the obligations start on the first sample: their tokens' places in code
                 ac = atoms(x)
-                code = obligations(
-                    0, ac, code, o_nodes, o_truth, o_temporal, o_local, o_init, o_state, o_buf, o_cnt, o_ptr
-                )
+                code = obligations(0, ac, code, o_nodes, o_truth, o_temporal, o_mem, o_regs)
             rbf(x, counts, periodic, lo, hi, kw, centres, g, phi)
             u = dot_j(xr, marked[code], K, phi, F, prod, tk) * inv_k
             for k in range(N):
@@ -234,9 +228,7 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, timed:
                 ac = atoms(x)
                 code1 = next_code[clock[k], code, ac]
                 if timed:  # NetRuntime.advance_code: the obligations' tokens, which the tables keep
-                    code1 = obligations(
-                        k + 1, ac, code1, o_nodes, o_truth, o_temporal, o_local, o_init, o_state, o_buf, o_cnt, o_ptr
-                    )
+                    code1 = obligations(k + 1, ac, code1, o_nodes, o_truth, o_temporal, o_mem, o_regs)
                 rew = reward_tab[code, code1]
                 ret[r] += rew if full else reward_full[code, code1]
                 rbf(x, counts, periodic, lo, hi, kw, centres, g, phi_next)

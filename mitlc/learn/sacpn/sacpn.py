@@ -521,7 +521,7 @@ class Sacpn:
                 1.0 / self.n_tokens, 1.0 / self.n_tokens_c,
                 st.mask == "current", st.saturation == "applied", bool(st.bootstrap_timeout), bool(self._known),
                 s_pen >= 1.0,
-                obl.nodes, obl.truth, obl.temporal, obl.local, obl.init, *work, timed,
+                obl.nodes, obl.truth, obl.temporal, *work, timed,
             )  # fmt: skip
             return ret
 
