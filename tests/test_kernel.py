@@ -189,6 +189,10 @@ def test_compiled_kernel_to_the_bit_in_a_portable_process() -> None:
         "assert t.LIBM, 'numpy at its baseline is still not the C library'\n"
         "t.same_trials(t.rs_of('pendulum/p1_swing_up'), t.SacpnSettings(kernel='numpy'), t.fk.jit, trials=3)\n"
         "t.same_trials(t.rs_of('pendulum/p4_alternate'), t.SacpnSettings(kernel='numpy'), t.fk.jit, trials=3)\n"
+        "for name in t.TIMED:\n"  # timed obligations: the uncompiled kernel on all, the compiled one on N1..N4
+        "    t.same_trials(t.rs_of(name), t.SacpnSettings(kernel='numpy', **t.SMALL), t.fk.identity, trials=2)\n"
+        "for name in t.TIMED[:4]:\n"
+        "    t.same_trials(t.rs_of(name), t.SacpnSettings(kernel='numpy'), t.fk.jit, trials=3)\n"
     )
     env = {**os.environ, **PORTABLE}
     run = subprocess.run(
