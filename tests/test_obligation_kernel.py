@@ -10,6 +10,9 @@ liveness everywhere, and move the sub-nets' tokens in a marking code to the plac
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 import strategies
@@ -27,7 +30,7 @@ STEP = ok.obligation_kernel(lambda fn: fn)  # plain Python
 TEMPORAL = (A.Eventually, A.Globally, A.Until, A.Release)
 
 
-def run_both(f: A.Formula, bits: np.ndarray, dt: float) -> None:
+def run_both(f: A.Formula, bits: np.ndarray, dt: float, step: Callable = STEP) -> None:
     """Feed traces ``bits`` ``(runs, samples)`` of atom codes over ``a``, ``b`` to both engines."""
     tree = ObligationTree.build(normal_form(f))
     temporal = tree.temporal
@@ -46,7 +49,7 @@ def run_both(f: A.Formula, bits: np.ndarray, dt: float) -> None:
             (ROOT_LOCAL if i == tree.root else NODE_LOCAL)[where[i]] * strides[j] for j, i in enumerate(temporal)
         )
         for r in range(R):
-            code = STEP(k, int(bits[r, k]), 0, arrays.nodes, arrays.truth, arrays.temporal, *work[r])
+            code = step(k, int(bits[r, k]), 0, arrays.nodes, arrays.truth, arrays.temporal, *work[r])
             assert code == want[r], (str(f), k, r)
             st_r = work[r][0]  # its state: rows VAL .. MISS_FROM
             for g, node in enumerate(tree.nodes):
@@ -88,3 +91,19 @@ def test_engine_on_long_traces(text: str) -> None:
     slow = np.repeat(rng.integers(0, 4, (3, 11)), 10, axis=1)[:, :101]  # long stretches of one code
     bits = np.concatenate([slow, rng.integers(0, 4, (2, 101)), np.full((1, 101), 3)])
     run_both(parse_formula(text), bits, 0.03)
+
+
+@functools.cache
+def compiled_step() -> Callable:
+    from mitlc.learn.sacpn import kernel as fk
+
+    return ok.obligation_kernel(fk.jit)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(nested, st.integers(1, 12), st.integers(0, 2**32 - 1), st.sampled_from([1.0, 0.5, 0.3]))
+def test_compiled_engine_is_timed_state(f: A.Formula, steps: int, seed: int, dt: float) -> None:
+    """The engine as the trial kernel runs it: compiled by numba (every op, until and release too)."""
+    pytest.importorskip("numba")
+    bits = np.random.default_rng(seed).integers(0, 4, (5, steps + 1))
+    run_both(f, bits, dt, compiled_step())
