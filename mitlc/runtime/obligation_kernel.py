@@ -5,11 +5,13 @@ every node of an obligation tree for every start time, ``(R, N+1)`` each, and re
 them from scratch at every sample (numpy over the runs). This module is the same engine for *one*
 run, written as loops over integers and arrays only (no Python objects), so that a compiled trial
 kernel (:mod:`mitlc.learn.sacpn.kernel`, through numba) can step it: :func:`build` compiles the
-obligation trees of a net into arrays, :func:`obligation_kernel` gives the two per-sample
-functions, and :func:`places_codes` moves the sub-nets' tokens in a marking code as
-:meth:`~mitlc.runtime.NetRuntime.advance_code` does. It gives the same values, liveness and places
-as :class:`~mitlc.runtime.obligations.TimedState` after every sample
-(``tests/test_obligation_kernel.py`` checks it on random formulas and traces).
+obligation trees of a net into arrays (:meth:`~mitlc.runtime.NetRuntime.obligation_arrays`), and
+:func:`obligation_kernel` gives the per-sample function, which takes one sample into one run's
+state and moves the sub-nets' tokens in a mixed-radix marking code as
+:meth:`~mitlc.runtime.NetRuntime.advance_code` does (``code += (local - old) * stride``). It gives
+the same values, liveness and places as :class:`~mitlc.runtime.obligations.TimedState` after every
+sample (``tests/test_obligation_kernel.py`` checks it, plain and compiled, on random formulas and
+traces).
 
 Where the work goes.  Values only go from pending to true or false, and liveness only from live to
 dead (:mod:`mitlc.petri.timed`), so the engine is *event driven*: a sample decides the state nodes'
@@ -18,8 +20,10 @@ at the start times whose window holds that position:
 
 * ``and``/``or``: the same position, recomputed;
 * ``F``/``G``: a *hit* (a true child under ``F``, a false one under ``G``) decides every pending
-  start time whose window holds it; a *miss* counts, and a start time whose window is all misses
-  is decided the other way (counts per start time, kept between samples);
+  start time whose window holds it; a *miss* decides the other way every pending start time
+  whose window now lies inside the run of misses around it. Skip lists (union-find forests
+  whose links are only ever added) find the ends of that run and the pending start times in
+  amortised constant time, so an unbounded window costs no more than a short one;
 * ``U``/``R``: the start times the changed positions can reach are recomputed by a scan of their
   window (the left side's run from the start time, the right side's witness in the window).
 
@@ -30,7 +34,12 @@ that only move forward (dead positions stay dead). Only the start times that can
 the root's value at start 0, and below it the positions its windows reach (``REL``).
 
 The state a run starts from (nothing observed: only the constant state parts decided) is the same
-for every run and trial: :func:`build` computes it once (``init``), and a run copies it.
+for every run and trial: :func:`build` computes it once (``init``), and a run copies it. On the
+shipped specs N1..N4 a sample costs about 0.15 us inside the trial kernel.
+
+Adding a temporal operator to :class:`~mitlc.runtime.obligations.TimedState` means adding it here
+too: an op code, its windows in :func:`build` (``VLO``/``VHI``, ``WLO``/``WHI``), its value in
+:func:`initial_state` and its case in ``obl_step``.
 """
 
 from __future__ import annotations
