@@ -19,7 +19,12 @@ R = 30 with the option against R = 30 without it, in the same process.
 With ``--kernel`` it compares the numpy trial and the fused kernel (kernel = numba) in
 the same process on P1 and P4 at R = 1 and 30, and prints the kernel's scaling in R.
 
-    python bench/bench_train.py [--problem p1] [--trials 40] [--violations permanent] [--kernel]
+With ``--nested`` it measures the specs with timed obligations (N1..N4, nested intervals) at
+R = 30: the numpy trial and the kernel under the standard clock (the obligations' engine in the
+kernel), against the kernel on the same spec under ``--clock trial`` (no obligations, a smaller
+net), and prints the ratios (the issue's target: standard within 1.5x of trial).
+
+    python bench/bench_train.py [--problem p1] [--trials 40] [--violations permanent] [--kernel] [--nested]
 """
 
 from __future__ import annotations
@@ -51,6 +56,10 @@ SPECS = {
     "p3": "p3_avoid_speed_limit.mitl",
     "p4": "p4_alternate.mitl",
     "p5": "p5_timed_visit.mitl",
+    "n1": "n1_reach_in_time.mitl",
+    "n2": "n2_hold_up.mitl",
+    "n3": "n3_bounded_response.mitl",
+    "n4": "n4_recurring_window.mitl",
 }
 
 
@@ -132,7 +141,11 @@ def main() -> None:
     ap.add_argument("--naive-trials", type=int, default=4, help="trials timed for the naive loop (3 runs)")
     ap.add_argument("--violations", default="off", choices=("off", "permanent", "counted"))
     ap.add_argument("--kernel", action="store_true", help="numpy trial vs the fused numba kernel, P1 and P4")
+    ap.add_argument("--nested", action="store_true", help="N1..N4: clock standard (kernel, numpy) vs clock trial")
     args = ap.parse_args()
+    if args.nested:
+        nested(args.trials)
+        return
     spec = load_spec(ROOT / "specs" / "pendulum" / SPECS[args.problem])
     rs = compile_spec(spec)
     if args.violations != "off":
@@ -197,6 +210,32 @@ def kernels(trials: int) -> None:
     for runs in (1, 10, 30, 100, 1000):
         rate, _ = batched(rs, runs, max(2, 3000 // runs), kernel="numba")
         print(f"  R={runs:<5}: {rate:12,.0f} run-steps/s")
+
+
+def nested(trials: int) -> None:
+    """N1..N4 at R = 30, best of 3 each: the numpy trial and the kernel under the standard clock (timed
+    obligations), and the kernel under ``--clock trial``; the ratios (printed, never asserted)."""
+    from mitlc.learn.sacpn.kernel import numba_available
+
+    if not numba_available():
+        print("numba is not installed (pip install 'mitlc[fast]'): nothing to compare")
+        return
+    print("R=30, run-steps/s; standard = timed obligations (nested intervals), trial = --clock trial")
+    for problem in ("n1", "n2", "n3", "n4"):
+        spec = load_spec(ROOT / "specs" / "pendulum" / SPECS[problem])
+        rs_std = compile_spec(spec, CompileOptions.from_spec(spec, clock="standard"))
+        rs_trial = compile_spec(spec, CompileOptions.from_spec(spec, clock="trial"))
+        assert rs_std.timed and not rs_trial.timed
+        for rs in (rs_std, rs_trial):  # compile (once per process and spec) before timing
+            Sacpn(rs, SacpnSettings(kernel="numba"), runs=30).train(1)
+        slow, _ = batched(rs_std, 30, max(2, trials // 10))
+        std, _ = batched(rs_std, 30, trials * 5, kernel="numba")
+        trial, _ = batched(rs_trial, 30, trials * 5, kernel="numba")
+        print(
+            f"{problem}: standard numpy {slow:10,.0f}  standard kernel {std:10,.0f}  trial kernel {trial:10,.0f}  "
+            f"kernel / numpy {std / slow:5.1f}x  standard / trial time {trial / std:4.2f}x  "
+            f"({len(rs_std.net.places)} places against {len(rs_trial.net.places)})"
+        )
 
 
 def checkpoint_cost(rs, rate30: float) -> None:

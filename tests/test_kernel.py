@@ -55,9 +55,32 @@ formula {}
 """
 
 
+NESTED = """plant pendulum(u_max = 5)
+init q in [-1, 1], qdot in [-3, 3]
+horizon 1
+prop a = abs(q) < 0.5
+prop b = abs(qdot) < 1.5
+formula {}
+"""
+TIMED = [  # timed obligations (nested intervals, clock = standard): the kernel steps their engine
+    "pendulum/n1_reach_in_time",
+    "pendulum/n2_hold_up",
+    "pendulum/n3_bounded_response",
+    "pendulum/n4_recurring_window",
+    "nested: F[0,2] G[0,1] a",
+    "nested: F[0,0.3] G[0,0.2] a & G b",
+    "nested: 3 * G (a -> F[0,0.5] b)",
+    "nested: a U[0,0.6] G[0,0.15] b",
+    "nested: b R[0.1,0.6] F[0,0.2] a",
+    "nested: G[0,0.3] F[0.1,0.4] a | F G b",
+]
+
+
 def rs_of(name: str, violations: str = "off"):
     if name.startswith("mass-damper: "):  # the shipped mass-damper specs are HyRL requirements
         spec = parse_spec(MASS_DAMPER.format(name.removeprefix("mass-damper: ")))
+    elif name.startswith("nested: "):
+        spec = parse_spec(NESTED.format(name.removeprefix("nested: ")))
     else:
         spec = load_spec(ROOT / "specs" / f"{name}.mitl")
     return compile_spec(spec, CompileOptions.from_spec(spec, violations=violations))
@@ -100,6 +123,21 @@ def test_uncompiled_kernel_with_violations_and_the_penalty_ramp(violations: str)
         same_trials(rs, st, fk.identity, trials=3, ramp=2)  # s_pen 0, 0.5, then 1
 
 
+@pytest.mark.parametrize("name", TIMED)
+@pytest.mark.parametrize("variant", range(len(VARIANTS)))
+def test_uncompiled_kernel_with_timed_obligations(name: str, variant: int) -> None:
+    rs = rs_of(name)
+    assert rs.timed
+    same_trials(rs, SacpnSettings(kernel="numpy", **SMALL, **VARIANTS[variant]), fk.identity, trials=2)
+
+
+@pytest.mark.parametrize("violations", ["permanent", "counted"])
+def test_uncompiled_kernel_with_timed_obligations_and_violations(violations: str) -> None:
+    for name in ("pendulum/n3_bounded_response", "nested: 3 * G (a -> F[0,0.5] b)"):
+        st = SacpnSettings(kernel="numpy", **SMALL)
+        same_trials(rs_of(name, violations), st, fk.identity, trials=3, ramp=2)
+
+
 # Compiled: one spec per kind of predicate and net (each new set of predicates is a compile
 # of several seconds); the uncompiled test above runs all of SPECS.
 COMPILED = ["pendulum/p1_swing_up", "pendulum/p3_avoid_speed_limit", "pendulum/p4_alternate", SPECS[-1]]
@@ -117,6 +155,16 @@ def test_compiled_kernel_variants_and_violations() -> None:
     st = SacpnSettings(kernel="numpy", saturation="none", bootstrap_timeout=False)
     same_trials(rs_of("pendulum/p1_swing_up"), st, fk.jit, trials=2)
     same_trials(rs_of("pendulum/p3_avoid_speed_limit", "permanent"), SacpnSettings(), fk.jit, trials=3, ramp=2)
+
+
+@pytest.mark.parametrize("name", TIMED[:4])
+def test_compiled_kernel_with_timed_obligations(name: str) -> None:
+    """N1..N4, whole trials at the spec's horizon (the windows of seconds, tens of samples)."""
+    pytest.importorskip("numba")
+    same_trials(rs_of(name), SacpnSettings(kernel="numpy"), fk.jit, trials=3)
+    if name == "pendulum/n3_bounded_response":  # the same predicates: the same compiled kernel
+        st = SacpnSettings(kernel="numpy", mask="next")
+        same_trials(rs_of(name, "permanent"), st, fk.jit, trials=3, ramp=2)
 
 
 def test_train_with_auto_equals_numpy() -> None:
@@ -141,6 +189,10 @@ def test_compiled_kernel_to_the_bit_in_a_portable_process() -> None:
         "assert t.LIBM, 'numpy at its baseline is still not the C library'\n"
         "t.same_trials(t.rs_of('pendulum/p1_swing_up'), t.SacpnSettings(kernel='numpy'), t.fk.jit, trials=3)\n"
         "t.same_trials(t.rs_of('pendulum/p4_alternate'), t.SacpnSettings(kernel='numpy'), t.fk.jit, trials=3)\n"
+        "for name in t.TIMED:\n"  # timed obligations: the uncompiled kernel on all, the compiled one on N1..N4
+        "    t.same_trials(t.rs_of(name), t.SacpnSettings(kernel='numpy', **t.SMALL), t.fk.identity, trials=2)\n"
+        "for name in t.TIMED[:4]:\n"
+        "    t.same_trials(t.rs_of(name), t.SacpnSettings(kernel='numpy'), t.fk.jit, trials=3)\n"
     )
     env = {**os.environ, **PORTABLE}
     run = subprocess.run(
@@ -149,14 +201,27 @@ def test_compiled_kernel_to_the_bit_in_a_portable_process() -> None:
     assert run.returncode == 0, run.stdout + run.stderr
 
 
-def test_fallback_for_timed_obligations() -> None:
-    rs = rs_of("pendulum/n1_reach_in_time")
-    agent = Sacpn(rs, SacpnSettings(kernel="auto"), runs=1, seed=0)
+def test_timed_obligations_train_on_the_kernel() -> None:
+    pytest.importorskip("numba")
+    rs = rs_of("pendulum/n2_hold_up")
+    a = Sacpn(rs, SacpnSettings(kernel="numpy"), runs=2, seed=5)
+    b = Sacpn(rs, SacpnSettings(kernel="auto"), runs=2, seed=5)
+    assert (b.kernel, b.kernel_reason) == ("numba", None)
+    assert same(a.train(3), b.train(3))
+    assert same(a.xi, b.xi) and same(a.theta, b.theta)
+    # the learner's own runtime is not the kernel's obligations: a rollout still steps it
+    assert same(a.rollout(a.evaluation_states()).codes, b.rollout(b.evaluation_states()).codes)
+
+
+def test_fallback_for_timed_obligations_with_compact_tables() -> None:
+    """Codes that index reachable markings cannot move a token by arithmetic: the numpy path."""
+    bounded = " & ".join(f"F[0,{1 + 0.1 * i:.1f}] b" for i in range(8))
+    rs = compile_spec(parse_spec(NESTED.format(f"F[0,0.5] G a & {bounded}")))
+    agent = Sacpn(rs, SacpnSettings(kernel="auto", rbf=(3, 3)), runs=1, seed=0)
+    assert agent.runtime.compact and agent.runtime.timed
     assert agent.kernel == "numpy" and agent.kernel_reason is not None
     if fk.numba_available():
-        assert "timed" in agent.kernel_reason
-        forced = Sacpn(rs, SacpnSettings(kernel="numba"), runs=1, seed=0)
-        assert forced.kernel == "numpy" and "timed" in (forced.kernel_reason or "")
+        assert "compact" in agent.kernel_reason
     agent.train(1)
 
 

@@ -55,6 +55,9 @@ The sub-nets of a formula part with nested intervals (``clock = standard``,
 tables: :meth:`NetRuntime.reset` starts it, :meth:`NetRuntime.step` and
 :meth:`NetRuntime.step_code` advance it (one sample per call, in order), and a
 trainer that looks ``next_code`` up itself calls :meth:`NetRuntime.advance_code`.
+A compiled trainer steps its own copy instead: :meth:`NetRuntime.obligation_arrays`
+gives the trees as the arrays of :mod:`mitlc.runtime.obligation_kernel`, and
+``reset(x0, obligations=False)`` leaves their tokens to it.
 
 >>> from mitlc.spec.parse import parse_spec
 >>> from mitlc.petri.compile import compile_spec
@@ -80,7 +83,9 @@ import numpy as np
 
 from mitlc.petri.compile import RewardSystem
 from mitlc.petri.net import eval_state
+from mitlc.runtime import obligation_kernel
 from mitlc.runtime.atoms import compile_predicate, pack_atoms, scalar_atoms
+from mitlc.runtime.obligation_kernel import ObligationArrays
 from mitlc.runtime.obligations import Obligations
 from mitlc.runtime.rule import Rule, clock_ok
 from mitlc.runtime.tables import Radix, build_tables
@@ -311,6 +316,19 @@ class NetRuntime:
             return code_next
         return self._timed_codes(code_next, self._timed_observe(np.asarray(x_next, dtype=float)))
 
+    def obligation_arrays(self) -> ObligationArrays:
+        """The timed obligation trees as the arrays of a compiled per-run engine
+        (:mod:`mitlc.runtime.obligation_kernel`), for trials of :attr:`steps` samples of :attr:`dt`;
+        empty ones without timed obligations. Its tokens move by mixed-radix code arithmetic: not
+        with compact tables (ValueError)."""
+        if not self.timed:
+            return obligation_kernel.empty()
+        if self.compact:
+            raise ValueError("compact tables: a code indexes the reachable markings, a token cannot move by arithmetic")
+        assert self.dt is not None and self.steps is not None
+        sizes = [len(p) for p in self.subnet_places]
+        return obligation_kernel.build(self.timed, self.atoms, self.dt, self.steps, self._radix.strides, sizes)
+
     def obligation_clocks(self) -> np.ndarray:
         """Per run, the age of each timed node's oldest live obligation divided by its interval's
         upper end (the trial length when unbounded), 0 where none lives: ``(R, timed nodes)``."""
@@ -321,8 +339,13 @@ class NetRuntime:
         return self._obligations.verdicts() if self._obligations is not None else np.zeros((0, 0))
 
     # ------------------------------------------------------------ public API
-    def reset(self, x0: np.ndarray) -> np.ndarray:
-        """Initial markings ``(R, P)``: timing places from ``net.M0``, state tokens on x0's region."""
+    def reset(self, x0: np.ndarray, obligations: bool = True) -> np.ndarray:
+        """Initial markings ``(R, P)``: timing places from ``net.M0``, state tokens on x0's region.
+
+        The timed obligations are started on ``x0`` and their tokens placed; with ``obligations=False``
+        they are neither (their tokens stay at ``net.M0``): for a caller that steps its own copy of
+        them (SACPN's fused kernel, :mod:`mitlc.runtime.obligation_kernel`).
+        """
         x0 = np.asarray(x0, dtype=float)
         n = x0.shape[0]
         M = np.tile(np.asarray(self.net.M0, dtype=np.int64), (n, 1))
@@ -341,7 +364,7 @@ class NetRuntime:
                 placed |= here
             new[~placed] = M[~placed][:, places]  # no region holds: keep M0 (cannot happen for region nets)
             M[:, places] = new
-        if self.timed:
+        if self.timed and obligations:
             M = self._timed_markings(M, self._timed_reset(x0))
         return M
 
@@ -376,9 +399,9 @@ class NetRuntime:
         return self.rs.grader.grades({name: x[:, i] for name, i in self.columns.items()})
 
     # ------------------------------------------------------------ fast path on codes
-    def reset_code(self, x0: np.ndarray) -> np.ndarray:
+    def reset_code(self, x0: np.ndarray, obligations: bool = True) -> np.ndarray:
         """:meth:`reset` as marking codes ``(R,)``."""
-        return self.encode(self.reset(x0))
+        return self.encode(self.reset(x0, obligations))
 
     def step_code(self, code: np.ndarray, x_next: np.ndarray, tau_next: np.ndarray | float) -> np.ndarray:
         """:meth:`step` on marking codes (needs the tables)."""

@@ -15,7 +15,10 @@ There is one algorithm written twice, vectorised and scalar, and nothing may dri
   (``jit`` the identity) on small problems and checks its returns and parameters
   equal the numpy trial's **to the bit**; a change to one that the other does not
   mirror fails that test, with or without numba installed;
-* the compiled kernel is checked the same way on P1..P5 and a mass-damper spec;
+* the compiled kernel is checked the same way on P1..P5, N1..N4 and a mass-damper spec;
+* the timed obligations' engine (:mod:`mitlc.runtime.obligation_kernel`, the same plain-Python
+  rule) is checked against :class:`~mitlc.runtime.obligations.TimedState` after every sample of
+  random formulas and traces (``tests/test_obligation_kernel.py``);
 * the plant's physics is written once (``ode`` of :mod:`mitlc.plants`, or the
   pendulum's fused constants) and each plant's :attr:`~mitlc.plants.base.Plant.kernel_step`
   is tested bit for bit against the batched step;
@@ -30,10 +33,15 @@ There is one algorithm written twice, vectorised and scalar, and nothing may dri
   otherwise).
 
 Scope: ODE plants with a ``kernel_step`` (any number of inputs), RBF features without warped axes, nets
-whose transitions and rewards are fully tabulated (no timed obligations). The
-predicates are compiled from their syntax trees (data, never text) to Python
-source by :func:`mitlc.runtime.atoms.atom_source`. Anything else trains on the numpy path
-(:func:`unsupported` says why).
+whose transitions and rewards are fully tabulated, with or without timed
+obligations (nested intervals under ``clock = standard``: their sub-nets' tokens
+are moved after each table look-up by a per-run engine over arrays,
+:mod:`mitlc.runtime.obligation_kernel`, compiled in only for such nets), except
+timed obligations in a net whose tables are compact (a code then indexes the
+reachable markings, so a token cannot move by code arithmetic; none of the shipped
+specs). The predicates are compiled from their syntax trees (data, never text) to
+Python source by :func:`mitlc.runtime.atoms.atom_source`. Anything else trains on
+the numpy path (:func:`unsupported` says why).
 """
 
 from __future__ import annotations
@@ -44,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.plants.base import pairwise_sum_for
+from mitlc.runtime.obligation_kernel import no_obligations, obligation_kernel
 
 __all__ = ["numba_available", "jit", "identity", "trial_kernel", "rbf_kernel", "unsupported"]
 
@@ -114,19 +123,26 @@ def rbf_kernel(jit_fn: Callable) -> Callable:
     return jit_fn(rbf)
 
 
-def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool = True) -> Callable:
-    """The fused trial for one plant step and one atom-code function, compiled by ``jit_fn``.
+def trial_kernel(
+    plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool = True, timed: bool = False
+) -> Callable:
+    """The fused trial for one plant step and one atom-code function, compiled by ``jit_fn``;
+    ``timed``: for nets with timed obligations (else their engine is left out: a shorter compile).
 
     ``trial(x, noise, code0, xi, theta, ret, next_code, clock, reward_tab, reward_full,
-    marked, marked_c, pen, pen_left, pc, fc..., scalars, u_lo, u_hi, ..., flags)`` runs every
-    run's steps of Algorithm 1 as :meth:`~mitlc.learn.sacpn.Sacpn._trial`'s ``plain``
-    branch does, updating ``x``, ``xi``, ``theta`` and ``ret`` in place. ``xi`` is
-    ``(R, P, m, F)`` and ``noise`` ``(N, R, m)`` for ``m`` inputs, each saturated to its own
-    box ``[u_lo, u_hi]``; ``plant_step`` takes ``u`` as a number when ``one_input`` (the
+    marked, marked_c, pen, pen_left, pc, fc..., scalars, u_lo, u_hi, ..., flags, obligations...,
+    timed)`` runs every run's steps of Algorithm 1 as :meth:`~mitlc.learn.sacpn.Sacpn._trial_numpy`
+    does, updating ``x``, ``xi``, ``theta`` and ``ret`` in place. ``xi`` is ``(R, P, m, F)`` and
+    ``noise`` ``(N, R, m)`` for ``m`` inputs, each saturated to its own box ``[u_lo, u_hi]``;
+    ``plant_step`` takes ``u`` as a number when ``one_input`` (the
     :attr:`~mitlc.plants.base.Plant.kernel_step` of a plant with one input), else as ``(m,)``.
+    With ``timed`` the timed obligations' tokens are moved after each table look-up as
+    :meth:`~mitlc.runtime.NetRuntime.advance_code` moves them
+    (:mod:`mitlc.runtime.obligation_kernel`; ``obligations...`` are its arrays).
     """
     psum = pairwise_sum_for(jit_fn)
     rbf = rbf_kernel(jit_fn)
+    obligations = obligation_kernel(jit_fn) if timed else jit_fn(no_obligations)
     if one_input:
         scalar_step = plant_step
 
@@ -182,6 +198,12 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
         bootstrap,
         known,
         full,
+        o_nodes,
+        o_truth,
+        o_temporal,
+        o_mem,
+        o_regs,
+        timed,
     ):
         R, P, m, F = xi.shape[0], xi.shape[1], xi.shape[2], xi.shape[3]
         N = noise.shape[0]
@@ -200,6 +222,9 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
             e[:, :] = 0.0
             scale = 1.0
             code = code0[r]
+            if timed:  # the obligations start on the first sample: their tokens' places in code
+                ac = atoms(x)
+                code = obligations(0, ac, code, o_nodes, o_truth, o_temporal, o_mem, o_regs)
             rbf(x, counts, periodic, lo, hi, kw, centres, g, phi)
             for i in range(m):
                 u[i] = dot_j(xr[:, i], marked[code], K, phi, F, prod, tk) * inv_k
@@ -217,7 +242,10 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
                         du[i] = nz
                 # the plant and the net move
                 plant_step(x, a, pc, w)
-                code1 = next_code[clock[k], code, atoms(x)]
+                ac = atoms(x)
+                code1 = next_code[clock[k], code, ac]
+                if timed:  # NetRuntime.advance_code: the obligations' tokens, which the tables keep
+                    code1 = obligations(k + 1, ac, code1, o_nodes, o_truth, o_temporal, o_mem, o_regs)
                 rew = reward_tab[code, code1]
                 ret[r] += rew if full else reward_full[code, code1]
                 rbf(x, counts, periodic, lo, hi, kw, centres, g, phi_next)
@@ -289,8 +317,8 @@ def unsupported(agent: Any) -> str | None:
     if plant.kernel_step is None:
         return f"plant '{plant.name}' has no kernel_step (its one-step map for one run)"
     rt = agent.runtime
-    if rt.timed:
-        return "the net has timed obligations (nested intervals)"
+    if rt.timed and rt.compact:
+        return "the net has timed obligations and compact tables (codes index its reachable markings)"
     if agent.rs.paid_by_monitor:
         return f"the reward is the monitor's ({agent.rs.options.reward}), not the net's"
     if rt.graded:

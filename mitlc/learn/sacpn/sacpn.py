@@ -88,7 +88,7 @@ from mitlc.limits import (
 )
 from mitlc.petri.compile import RewardSystem
 from mitlc.plants.base import Plant
-from mitlc.runtime import NetRuntime
+from mitlc.runtime import NetRuntime, obligation_kernel
 from mitlc.runtime.atoms import atom_source, compile_atoms
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
@@ -178,8 +178,8 @@ class SacpnSettings(Settings):
     returns and parameters to the bit where numpy's float64 sin/cos/exp are the C
     library's (x86-64 up to AVX2; on AVX-512 CPUs within about 1e-13, see
     :mod:`mitlc.learn.sacpn.kernel`; tested); problems outside the kernel's scope
-    (environments, user plants without ``kernel_step``, timed obligations, untabulated
-    rewards) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
+    (environments, user plants without ``kernel_step``, untabulated rewards, timed
+    obligations with compact tables) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
     def resolved(self, plant: Plant) -> SacpnSettings:
         """These settings with what follows from ``plant`` filled in: the default ``rbf``
@@ -502,12 +502,13 @@ class Sacpn:
         assert plant.kernel_step is not None and rt.tables is not None and rt.tables.reward is not None
         plain_step, pc, nwork = plant.kernel_step(plant, self.params, fk.identity)  # pc, nwork: whatever jit
         one = self.n_inputs == 1
-        key = (jit, plant.name, plant.kernel_step, len(plant.state), one, atom_source(rt.preds, rt.columns))
+        timed = bool(rt.timed)  # the obligations' engine is compiled in only where the net has some
+        key = (jit, plant.name, plant.kernel_step, len(plant.state), one, atom_source(rt.preds, rt.columns), timed)
         trial = _KERNELS.get(key)
         if trial is None:
             if jit is fk.identity or jit is fk.jit:
                 atoms = compile_atoms(rt.preds, rt.columns, fk.identity)
-                plain = fk.trial_kernel(plain_step, atoms, fk.identity, one)
+                plain = fk.trial_kernel(plain_step, atoms, fk.identity, one, timed)
                 if jit is fk.identity:
                     trial = plain
                 else:  # compiled once per machine, through the disk cache
@@ -516,7 +517,7 @@ class Sacpn:
                     trial = jitcache.load(plain)
             if trial is None:  # compiled in memory, for this process
                 step = plant.kernel_step(plant, self.params, jit)[0]
-                trial = fk.trial_kernel(step, compile_atoms(rt.preds, rt.columns, jit), jit, one)
+                trial = fk.trial_kernel(step, compile_atoms(rt.preds, rt.columns, jit), jit, one, timed)
             _KERNELS[key] = trial
         self._kernel_fn = trial  # the compiled (or plain) trial itself, for inspection
         feats = self.features
@@ -541,6 +542,8 @@ class Sacpn:
         reward_full = np.ascontiguousarray(tables.reward, dtype=float)
         pen_left = self._pen_left if self._known else np.zeros(self.n_steps + 1)
         u_lo, u_hi = np.ascontiguousarray(self.u_lo, dtype=float), np.ascontiguousarray(self.u_hi, dtype=float)
+        obl = rt.obligation_arrays()  # kernel.unsupported: no compact tables with timed obligations
+        work = obligation_kernel.scratch(obl)
         first = [True]
 
         def run() -> np.ndarray:
@@ -556,7 +559,7 @@ class Sacpn:
                 reward_tab = reward_full + ((1.0 - s_pen) * self.rs.penalty) * tables.charge
             pen = self._pen * s_pen if self._known else np.zeros(reward_full.shape[0])
             x, noise = self._trial_start()
-            code0 = np.asarray(rt.reset_code(x), dtype=np.int64)
+            code0 = np.asarray(rt.reset_code(x, obligations=False), dtype=np.int64)  # the kernel places them
             ret = np.zeros(self.runs)
             xi = self._actor_rows().reshape(self.runs, self.n_places, self.n_inputs, self.n_features)
             trial(
@@ -566,6 +569,7 @@ class Sacpn:
                 1.0 / self.n_tokens, 1.0 / self.n_tokens_c,
                 st.mask == "current", st.saturation == "applied", bool(st.bootstrap_timeout), bool(self._known),
                 s_pen >= 1.0,
+                obl.nodes, obl.truth, obl.temporal, *work, timed,
             )  # fmt: skip
             return ret
 
