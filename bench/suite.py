@@ -112,7 +112,6 @@ def train_task(job: tuple) -> dict:
         from mitlc.monitor.rewards import pay
 
         pay(agent)
-    probe = _fresh_starts(agent, 1, seed + 1000)  # the curve's starts: one per run, fixed
     every = max(1, trials // CURVE_POINTS)
     curve: list[tuple[int, float]] = []
     spent = [0.0]
@@ -120,7 +119,9 @@ def train_task(job: tuple) -> dict:
     def judge_now(trial: int, _returns: np.ndarray) -> None:
         if trial % every == 0 or trial == trials:
             t0 = time.perf_counter()
-            ok = _judge(spec, agent.rollout(probe)).satisfied
+            # the curve's starts: one per run, the same each time (drawn again just before the rollout:
+            # an environment rolls out from the states its last reset returned)
+            ok = _judge(spec, agent.rollout(_fresh_starts(agent, 1, seed + 1000))).satisfied
             curve.append((trial, float(np.mean(ok))))
             spent[0] += time.perf_counter() - t0
 
