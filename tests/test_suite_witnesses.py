@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from bench.suite.split import SPLIT, problems
-from bench.suite.tasks import FAMILIES, init_box, load_tasks, params_of, rollout, task, zero_input
+from bench.suite.tasks import FAMILIES, init_box, input_shape, load_tasks, params_of, rollout, task, zero_input
 from mitlc.monitor.trace import write_trace
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
@@ -73,13 +73,16 @@ def test_the_witness_is_accepted_from_every_start(name: str) -> None:
             assert col.max() - col.min() >= 0.8 * (hi - lo)
         else:
             assert col.min() == pytest.approx(lo) and col.max() == pytest.approx(hi)
-    # what was applied stays within the input bound
-    assert np.abs(ro.inputs).max() <= params_of(t.spec)["u_max"]
+    # what was applied stays within each input's box, and has the plant's shape
+    lo, hi = plant.input_box(params_of(t.spec))
+    assert ro.inputs.shape[2:] == (() if plant.n_inputs == 1 else (plant.n_inputs,))
+    assert (ro.inputs >= lo).all() and (ro.inputs <= hi).all()
 
 
 @pytest.mark.parametrize("name", TASKS)
 def test_the_witness_keeps_to_the_input_bound(name: str) -> None:
-    """A witness clips its own output: states drawn over the plant's bounds, at times over the horizon."""
+    """A witness clips its own output to each input's box and returns the plant's shape (``(R,)``, or
+    ``(R, m)`` for ``m`` inputs): states drawn over the plant's bounds, at times over the horizon."""
     t = task(name)
     plant = t.spec.plant
     assert plant is not None and t.spec.horizon is not None
@@ -87,10 +90,11 @@ def test_the_witness_keeps_to_the_input_bound(name: str) -> None:
     x = np.random.default_rng(0).uniform(
         [v.lo for v in plant.state], [v.hi for v in plant.state], (64, len(plant.state))
     )
+    lo, hi = plant.input_box(p)
     for time in np.linspace(0.0, t.spec.horizon, 7):
         u = np.asarray(t.witness(x, float(time), p))
-        assert u.shape[0] == 64 and np.isfinite(u).all()
-        assert np.abs(u).max() <= p["u_max"]
+        assert u.shape == input_shape(plant, 64) and np.isfinite(u).all()
+        assert (u >= lo).all() and (u <= hi).all()
 
 
 @pytest.mark.parametrize("name", TASKS)
@@ -100,6 +104,30 @@ def test_doing_nothing_is_not_enough(name: str) -> None:
     _needs(name)
     zero = rollout(task(name), zero_input).judge()
     assert zero.satisfied.mean() <= 0.1, f"{name}: zero input satisfies it from {int(zero.satisfied.sum())} starts"
+
+
+@pytest.mark.parametrize("name", ["pendulum_alternate", "cart_patrol"])
+def test_a_controller_of_the_wrong_shape_is_one_clear_error(name: str) -> None:
+    """A controller returning inputs of another shape than the plant takes is a ValueError naming the
+    task and both shapes, not a broadcast deep in the simulator."""
+    t = task(name)
+    plant = t.spec.plant
+    assert plant is not None
+    m = plant.n_inputs
+    R = rollout(t, count=1).states.shape[0]
+    wrong = [(R, 1), (R, 3)] if m == 1 else [(R,), (R, 1), (R, m + 1), (m, R)]
+    for shape in wrong:
+        with pytest.raises(ValueError) as err:
+            rollout(t, lambda x, time, p, shape=shape: np.zeros(shape), count=1)
+        msg = str(err.value)
+        assert msg.startswith(f"task {name}: ") and str(shape) in msg and str(input_shape(plant, R)) in msg, msg
+
+
+def test_the_input_is_clipped_to_u_max() -> None:
+    """A controller asking for more than ``u_max`` is clipped to it, the recorded inputs what was applied."""
+    t = task("pendulum_alternate")
+    ro = rollout(t, lambda x, time, p: np.full(x.shape[0], 1e3), count=1)
+    assert (ro.inputs == params_of(t.spec)["u_max"]).all()
 
 
 @pytest.mark.parametrize("name", TASKS)
