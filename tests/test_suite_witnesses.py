@@ -213,6 +213,10 @@ def test_the_split_is_the_recorded_draw() -> None:
     suite = {t.name: t for t in load_tasks()}
     tuning, check = record["tuning"], record["check"]
     assert abs(len(tuning) - len(check)) <= 1
+    # the tasks added after the draw are recorded, each in the half it is in
+    added = record.get("added", {}).get("tasks", {})
+    assert set(added) == set(suite) - set(record["drawn"])
+    assert all(n in record[half] for n, half in added.items()), added
     for half in (tuning, check):
         assert any(suite[n].nested for n in half)
         plants = {suite[n].plant for n in half}
