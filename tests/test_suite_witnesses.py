@@ -8,6 +8,7 @@ for any task; the families each spec claims are in its formula; the split is the
 
 from __future__ import annotations
 
+import dataclasses
 import doctest
 import importlib
 import json
@@ -41,7 +42,7 @@ def test_the_suite_covers_what_it_promises() -> None:
     assert {f for t in suite for f in t.families} == set(FAMILIES)
     assert sum(t.nested for t in suite) >= 10
     plants = {t.plant for t in suite}
-    assert {"pendulum", "mass-damper", "rail-cart", "cartpole"} <= plants
+    assert {"pendulum", "mass-damper", "rail-cart", "cartpole", "unicycle"} <= plants
     assert len({p for p in plants if p.startswith("gym:")}) >= 2
     for t in suite:
         text = t.spec_path.read_text().splitlines()
@@ -106,7 +107,7 @@ def test_doing_nothing_is_not_enough(name: str) -> None:
     assert zero.satisfied.mean() <= 0.1, f"{name}: zero input satisfies it from {int(zero.satisfied.sum())} starts"
 
 
-@pytest.mark.parametrize("name", ["pendulum_alternate", "cart_patrol"])
+@pytest.mark.parametrize("name", ["pendulum_alternate", "unicycle_two_waypoints"])
 def test_a_controller_of_the_wrong_shape_is_one_clear_error(name: str) -> None:
     """A controller returning inputs of another shape than the plant takes is a ValueError naming the
     task and both shapes, not a broadcast deep in the simulator."""
@@ -120,14 +121,30 @@ def test_a_controller_of_the_wrong_shape_is_one_clear_error(name: str) -> None:
         with pytest.raises(ValueError) as err:
             rollout(t, lambda x, time, p, shape=shape: np.zeros(shape), count=1)
         msg = str(err.value)
-        assert msg.startswith(f"task {name}: ") and str(shape) in msg and str(input_shape(plant, R)) in msg, msg
+        assert msg.startswith(f"task {name}: the controller returned inputs of shape {shape}; "), msg
+        assert f"expected {input_shape(plant, R)}" in msg, msg
+    # a witness of the wrong shape says so
+    bad = dataclasses.replace(t, witness=lambda x, time, p: np.zeros(x.shape[0] + 1))
+    with pytest.raises(ValueError, match=rf"^task {name}: its witness returned inputs of shape \({R + 1},\); expected"):
+        rollout(bad, count=1)
 
 
-def test_the_input_is_clipped_to_u_max() -> None:
-    """A controller asking for more than ``u_max`` is clipped to it, the recorded inputs what was applied."""
+def test_each_input_is_clipped_to_its_own_box() -> None:
+    """A unicycle controller asking for more than the boxes give is clipped per input (v to +-1,
+    omega to +-2), the recorded inputs what was applied; a one-input plant is clipped to +-u_max."""
+    t = task("unicycle_goal_around_rock")
+    ro = rollout(t, lambda x, time, p: np.tile([5.0, -7.0], (x.shape[0], 1)), count=1)
+    R, N = ro.states.shape[0], ro.states.shape[1] - 1
+    assert ro.inputs.shape == (R, N, 2)
+    assert (ro.inputs == [1.0, -2.0]).all()
+    p = params_of(t.spec)
+    x1 = t.spec.plant.step(ro.states[:, 0].copy(), np.tile([1.0, -2.0], (R, 1)), p)  # type: ignore[union-attr]
+    assert np.allclose(ro.states[:, 1], x1)
     t = task("pendulum_alternate")
     ro = rollout(t, lambda x, time, p: np.full(x.shape[0], 1e3), count=1)
     assert (ro.inputs == params_of(t.spec)["u_max"]).all()
+    # zero input is every input's zero
+    assert (rollout(task("unicycle_patrol_pillar"), zero_input, count=1).inputs == 0).all()
 
 
 @pytest.mark.parametrize("name", TASKS)
