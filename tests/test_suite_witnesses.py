@@ -8,6 +8,7 @@ for any task; the families each spec claims are in its formula; the split is the
 
 from __future__ import annotations
 
+import dataclasses
 import doctest
 import importlib
 import json
@@ -20,7 +21,7 @@ import numpy as np
 import pytest
 
 from bench.suite.split import SPLIT, problems
-from bench.suite.tasks import FAMILIES, init_box, load_tasks, params_of, rollout, task, zero_input
+from bench.suite.tasks import FAMILIES, init_box, input_shape, load_tasks, params_of, rollout, task, zero_input
 from mitlc.monitor.trace import write_trace
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
@@ -41,7 +42,7 @@ def test_the_suite_covers_what_it_promises() -> None:
     assert {f for t in suite for f in t.families} == set(FAMILIES)
     assert sum(t.nested for t in suite) >= 10
     plants = {t.plant for t in suite}
-    assert {"pendulum", "mass-damper", "rail-cart", "cartpole"} <= plants
+    assert {"pendulum", "mass-damper", "rail-cart", "cartpole", "unicycle"} <= plants
     assert len({p for p in plants if p.startswith("gym:")}) >= 2
     for t in suite:
         text = t.spec_path.read_text().splitlines()
@@ -73,13 +74,16 @@ def test_the_witness_is_accepted_from_every_start(name: str) -> None:
             assert col.max() - col.min() >= 0.8 * (hi - lo)
         else:
             assert col.min() == pytest.approx(lo) and col.max() == pytest.approx(hi)
-    # what was applied stays within the input bound
-    assert np.abs(ro.inputs).max() <= params_of(t.spec)["u_max"]
+    # what was applied stays within each input's box, and has the plant's shape
+    lo, hi = plant.input_box(params_of(t.spec))
+    assert ro.inputs.shape[2:] == (() if plant.n_inputs == 1 else (plant.n_inputs,))
+    assert (ro.inputs >= lo).all() and (ro.inputs <= hi).all()
 
 
 @pytest.mark.parametrize("name", TASKS)
 def test_the_witness_keeps_to_the_input_bound(name: str) -> None:
-    """A witness clips its own output: states drawn over the plant's bounds, at times over the horizon."""
+    """A witness clips its own output to each input's box and returns the plant's shape (``(R,)``, or
+    ``(R, m)`` for ``m`` inputs): states drawn over the plant's bounds, at times over the horizon."""
     t = task(name)
     plant = t.spec.plant
     assert plant is not None and t.spec.horizon is not None
@@ -87,10 +91,11 @@ def test_the_witness_keeps_to_the_input_bound(name: str) -> None:
     x = np.random.default_rng(0).uniform(
         [v.lo for v in plant.state], [v.hi for v in plant.state], (64, len(plant.state))
     )
+    lo, hi = plant.input_box(p)
     for time in np.linspace(0.0, t.spec.horizon, 7):
         u = np.asarray(t.witness(x, float(time), p))
-        assert u.shape[0] == 64 and np.isfinite(u).all()
-        assert np.abs(u).max() <= p["u_max"]
+        assert u.shape == input_shape(plant, 64) and np.isfinite(u).all()
+        assert (u >= lo).all() and (u <= hi).all()
 
 
 @pytest.mark.parametrize("name", TASKS)
@@ -100,6 +105,46 @@ def test_doing_nothing_is_not_enough(name: str) -> None:
     _needs(name)
     zero = rollout(task(name), zero_input).judge()
     assert zero.satisfied.mean() <= 0.1, f"{name}: zero input satisfies it from {int(zero.satisfied.sum())} starts"
+
+
+@pytest.mark.parametrize("name", ["pendulum_alternate", "unicycle_two_waypoints"])
+def test_a_controller_of_the_wrong_shape_is_one_clear_error(name: str) -> None:
+    """A controller returning inputs of another shape than the plant takes is a ValueError naming the
+    task and both shapes, not a broadcast deep in the simulator."""
+    t = task(name)
+    plant = t.spec.plant
+    assert plant is not None
+    m = plant.n_inputs
+    R = rollout(t, count=1).states.shape[0]
+    wrong = [(R, 1), (R, 3)] if m == 1 else [(R,), (R, 1), (R, m + 1), (m, R)]
+    for shape in wrong:
+        with pytest.raises(ValueError) as err:
+            rollout(t, lambda x, time, p, shape=shape: np.zeros(shape), count=1)
+        msg = str(err.value)
+        assert msg.startswith(f"task {name}: the controller returned inputs of shape {shape}; "), msg
+        assert f"expected {input_shape(plant, R)}" in msg, msg
+    # a witness of the wrong shape says so
+    bad = dataclasses.replace(t, witness=lambda x, time, p: np.zeros(x.shape[0] + 1))
+    with pytest.raises(ValueError, match=rf"^task {name}: its witness returned inputs of shape \({R + 1},\); expected"):
+        rollout(bad, count=1)
+
+
+def test_each_input_is_clipped_to_its_own_box() -> None:
+    """A unicycle controller asking for more than the boxes give is clipped per input (v to +-1,
+    omega to +-2), the recorded inputs what was applied; a one-input plant is clipped to +-u_max."""
+    t = task("unicycle_goal_around_rock")
+    ro = rollout(t, lambda x, time, p: np.tile([5.0, -7.0], (x.shape[0], 1)), count=1)
+    R, N = ro.states.shape[0], ro.states.shape[1] - 1
+    assert ro.inputs.shape == (R, N, 2)
+    assert (ro.inputs == [1.0, -2.0]).all()
+    p = params_of(t.spec)
+    x1 = t.spec.plant.step(ro.states[:, 0].copy(), np.tile([1.0, -2.0], (R, 1)), p)  # type: ignore[union-attr]
+    assert np.allclose(ro.states[:, 1], x1)
+    t = task("pendulum_alternate")
+    ro = rollout(t, lambda x, time, p: np.full(x.shape[0], 1e3), count=1)
+    assert (ro.inputs == params_of(t.spec)["u_max"]).all()
+    # zero input is every input's zero
+    assert (rollout(task("unicycle_patrol_pillar"), zero_input, count=1).inputs == 0).all()
 
 
 @pytest.mark.parametrize("name", TASKS)
@@ -185,6 +230,10 @@ def test_the_split_is_the_recorded_draw() -> None:
     suite = {t.name: t for t in load_tasks()}
     tuning, check = record["tuning"], record["check"]
     assert abs(len(tuning) - len(check)) <= 1
+    # the tasks added after the draw are recorded, each in the half it is in
+    added = record.get("added", {}).get("tasks", {})
+    assert set(added) == set(suite) - set(record["drawn"])
+    assert all(n in record[half] for n, half in added.items()), added
     for half in (tuning, check):
         assert any(suite[n].nested for n in half)
         plants = {suite[n].plant for n in half}

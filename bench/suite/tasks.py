@@ -29,6 +29,7 @@ import numpy as np
 
 from mitlc.limits import check_steps
 from mitlc.monitor import MonitorResult, monitor
+from mitlc.plants import Plant
 from mitlc.spec import ast as A
 from mitlc.spec.model import Spec
 from mitlc.spec.parse import load_spec
@@ -44,6 +45,8 @@ __all__ = [
     "spread",
     "rollout",
     "zero_input",
+    "input_shape",
+    "clip_inputs",
 ]
 
 HERE = Path(__file__).resolve().parent
@@ -173,8 +176,37 @@ def task(name: str) -> Task:
 
 
 def zero_input(x: np.ndarray, t: float, params: Mapping[str, float]) -> np.ndarray:
-    """The controller that does nothing: what a task must not be satisfied by, mostly."""
+    """The controller that does nothing: what a task must not be satisfied by, mostly. It returns
+    ``(R,)``; :func:`rollout` gives it every input's zero, ``(R, m)``, on a plant with ``m`` inputs."""
     return np.zeros(x.shape[0])
+
+
+def input_shape(plant: Plant, rows: int) -> tuple[int, ...]:
+    """The shape a controller returns for ``rows`` states: ``(R,)`` for one input, ``(R, m)`` for ``m``."""
+    return (rows,) if plant.n_inputs == 1 else (rows, plant.n_inputs)
+
+
+def clip_inputs(
+    t: Task, u: np.ndarray, rows: int, params: Mapping[str, float], who: str = "the controller"
+) -> np.ndarray:
+    """``u`` clipped to the plant's input bound: each input to its own box for a plant that declares
+    its inputs (:meth:`~mitlc.plants.Plant.input_box`), ``+-u_max`` for the others (none for an
+    environment without ``u_max``). A ``u`` of another shape than :func:`input_shape`'s is a
+    ``ValueError`` naming the task, ``who`` returned it, and both shapes."""
+    plant = t.spec.plant
+    assert plant is not None
+    want = input_shape(plant, rows)
+    if u.shape != want:
+        names = ", ".join(plant.input_names)
+        raise ValueError(
+            f"task {t.name}: {who} returned inputs of shape {u.shape}; expected {want} "
+            f"(plant '{plant.name}', inputs: {names})"
+        )
+    if plant.inputs is None:
+        u_max = params.get("u_max", np.inf)
+        return np.clip(u, -u_max, u_max)
+    lo, hi = plant.input_box(params)
+    return np.clip(u, lo, hi) if plant.n_inputs > 1 else np.clip(u, lo[0], hi[0])
 
 
 def params_of(spec: Spec) -> dict[str, float]:
@@ -236,7 +268,7 @@ class Rollouts:
     states: np.ndarray
     """``(R, N+1, n)``, in the plant's state order."""
     inputs: np.ndarray
-    """``(R, N)`` (``(R, N, m)`` for ``m`` inputs), after clipping to the input bound."""
+    """``(R, N)`` (``(R, N, m)`` for ``m`` inputs), after clipping to the inputs' boxes."""
     dt: float
 
     @property
@@ -289,8 +321,12 @@ def rollout(t: Task, controller: Witness | None = None, count: int = MAX_STARTS)
     horizon, from about ``count`` starts spread over its ``init`` box (:func:`spread`; an
     environment: the seeded resets nearest them, :func:`_gym_seeds`).
 
-    The plant is stepped by its simulator, as SACPN's trials and ``mitlc simulate`` step it; the
-    input is clipped to ``+-u_max`` before the controller's output is recorded."""
+    The plant is stepped by its simulator, as SACPN's trials and ``mitlc simulate`` step it. The
+    controller returns ``(R,)`` for a plant with one input and ``(R, m)`` for one with ``m``
+    (another shape is a ``ValueError`` naming the task); each input is clipped to its own box
+    (``+-u_max`` for a plant bounded by ``u_max``) before it is recorded and applied
+    (:func:`clip_inputs`)."""
+    who = "the controller" if controller is not None and controller is not t.witness else "its witness"
     controller = controller or t.witness
     spec = t.spec
     plant = spec.plant
@@ -311,19 +347,18 @@ def rollout(t: Task, controller: Witness | None = None, count: int = MAX_STARTS)
         R = x.shape[0]
         states = np.empty((R, steps + 1, x.shape[1]))
         states[:, 0] = x
-        u_max = params.get("u_max", np.inf)
-        inputs: np.ndarray | None = None
+        want = input_shape(plant, R)
+        inputs = np.empty((R, steps, *want[1:]))
         for k in range(steps):
-            u = np.asarray(controller(x.copy(), k * dt, params), dtype=float)
-            u = np.clip(u, -u_max, u_max)
-            if inputs is None:
-                inputs = np.empty((R, steps, *u.shape[1:]))
+            if controller is zero_input:
+                u = np.zeros(want)
+            else:
+                u = clip_inputs(t, np.asarray(controller(x.copy(), k * dt, params), dtype=float), R, params, who)
             inputs[:, k] = u
             sim.step(x, u)
             states[:, k + 1] = x
     finally:
         getattr(sim, "close", lambda: None)()
-    assert inputs is not None
     return Rollouts(t, states, inputs, dt)
 
 

@@ -2,15 +2,18 @@
 
 ``witness(x, t, params) -> u``: ``x`` the states ``(R, n)`` in the spec's state order, ``t``
 the time in seconds since the start, ``params`` the plant's parameters with the spec's
-overrides; ``u`` the inputs ``(R,)`` (``(R, m)`` for a plant of ``m`` inputs), clipped to
-``+-u_max``. A witness is a feedback law (sometimes with a schedule of targets in ``t``):
-it proves the task satisfiable, and is no claim to be a good controller.
+overrides; ``u`` the inputs ``(R,)`` (``(R, m)`` for a plant of ``m`` inputs), each clipped to
+its box (``+-u_max`` for a plant bounded by ``u_max``). A witness is a feedback law (sometimes
+with a schedule of targets in ``t``): it proves the task satisfiable, and is no claim to be a
+good controller.
 
 The building blocks are the textbook ones: feedback linearisation with a PD law for the
 pendulum, PD and velocity-limited tracking for the mass-damper and the cart, an energy
 pump for swinging up, LQR for the cart-pole (gains from the linearisation at upright,
-computed once with scipy and written here), and pushing along the velocity for the
-mountain car.
+computed once with scipy and written here), pushing along the velocity for the
+mountain car, and for the unicycle go-to-point steering (the turn rate in proportion to the
+wrapped heading error, the speed scaled by the distance and the alignment) towards waypoints
+chosen by time or by position, and a vector field round a circle.
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ import math
 from collections.abc import Callable, Mapping
 
 import numpy as np
+
+from mitlc.plants import PLANTS
 
 Params = Mapping[str, float]
 Witness = Callable[[np.ndarray, float, Params], np.ndarray]
@@ -301,3 +306,70 @@ def gym_mountain_car_no_wall(x: np.ndarray, t: float, p: Params) -> np.ndarray:
 def gym_mountain_car_left_first(x: np.ndarray, t: float, p: Params) -> np.ndarray:
     """Push along the velocity, left when at rest: up the left hill first."""
     return np.where(x[:, 1] > 0, 1.0, -1.0) * p["u_max"]
+
+
+# ------------------------------------------------------------------ the unicycle
+# xdot = v cos theta, ydot = v sin theta, thetadot = omega; u = (v, omega), (R, 2), each in its own box.
+UNICYCLE_LO, UNICYCLE_HI = PLANTS["unicycle"].input_box()
+
+
+def _unicycle(v: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """``(R, 2)``: the speed and the turn rate, each clipped to its box."""
+    return np.clip(np.stack([v, omega], axis=1), UNICYCLE_LO, UNICYCLE_HI)
+
+
+def _steer(x: np.ndarray, heading: np.ndarray, speed: float | np.ndarray, k: float = 4.0) -> np.ndarray:
+    """Turn towards ``heading`` (``omega = k`` times the wrapped heading error) and drive at ``speed``
+    scaled by how well the robot is aligned (``cos`` of the error, none while it faces away)."""
+    err = _wrap(heading - x[:, 2])
+    return _unicycle(speed * np.clip(np.cos(err), 0.0, 1.0), k * err)
+
+
+def _go_to(x: np.ndarray, gx: float | np.ndarray, gy: float | np.ndarray, k_d: float = 2.0) -> np.ndarray:
+    """Go to the point ``(gx, gy)``: steer along the bearing to it, the speed ``min(1, k_d d)`` falling
+    off with the distance ``d`` to it, so the robot comes to rest there."""
+    dx, dy = gx - x[:, 0], gy - x[:, 1]
+    return _steer(x, np.arctan2(dy, dx), np.clip(k_d * np.hypot(dx, dy), 0.0, 1.0))
+
+
+@witness
+def unicycle_goal_around_rock(x: np.ndarray, t: float, p: Params) -> np.ndarray:
+    """Round the rock by the side the robot is on (through a point 0.85 m above or below its centre),
+    then to the goal once past it; the speed falls off with the distance to the goal, not to the
+    point beside the rock, so the robot drives through that point and comes to rest in the goal."""
+    side = np.where(x[:, 1] >= 0, 1.0, -1.0)
+    past = x[:, 0] >= 0.0
+    gx = np.where(past, 1.3, 0.0)
+    gy = np.where(past, 0.0, 0.85 * side)
+    dx, dy = gx - x[:, 0], gy - x[:, 1]
+    to_goal = np.hypot(1.3 - x[:, 0], x[:, 1])
+    return _steer(x, np.arctan2(dy, dx), np.clip(2.0 * to_goal, 0.0, 1.0))
+
+
+@witness
+def unicycle_two_waypoints(x: np.ndarray, t: float, p: Params) -> np.ndarray:
+    """To waypoint A until 3 s, then to waypoint B."""
+    return _go_to(x, -1.0, -0.2) if t < 3.0 else _go_to(x, 0.9, 0.8)
+
+
+@witness
+def unicycle_patrol_pillar(x: np.ndarray, t: float, p: Params) -> np.ndarray:
+    """Round the circle of radius 0.8 m through both stations, clockwise (from the bottom, A first):
+    the tangent's heading turned towards the circle by ``atan(3 (r - 0.8))``, plus the turn rate
+    of the circle itself."""
+    r = np.hypot(x[:, 0], x[:, 1])
+    phi = np.arctan2(x[:, 1], x[:, 0])
+    heading = phi - np.pi / 2 - np.arctan(3.0 * (r - 0.8))
+    u = _steer(x, heading, 1.0)
+    u[:, 1] = np.clip(u[:, 1] - u[:, 0] / 0.8, UNICYCLE_LO[1], UNICYCLE_HI[1])
+    return u
+
+
+@witness
+def unicycle_corridor_exit(x: np.ndarray, t: float, p: Params) -> np.ndarray:
+    """Along the corridor's centre line (a point 0.5 m ahead on it), round the corner at (1, 0), up to
+    the exit bay's middle, (1, 1.6), and stop there."""
+    along = x[:, 0] < 0.7
+    gx = np.where(along, np.minimum(x[:, 0] + 0.5, 1.0), 1.0)
+    gy = np.where(along, 0.0, np.minimum(np.maximum(x[:, 1], 0.0) + 0.5, 1.6))
+    return _go_to(x, gx, gy)
