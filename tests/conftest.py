@@ -39,3 +39,20 @@ def short_spec(tmp_path: Path) -> Path:
     p = tmp_path / "p2_short.mitl"
     p.write_text(P2_SHORT)
     return p
+
+
+@pytest.fixture
+def forget_user_plants():
+    """Put the plant registry back as it was: a test that loads plant files (``--plant-file``, a
+    run folder's copy, ``load_plants``) registers plants that later tests must not see. Used by
+    the modules that load them: ``pytestmark = pytest.mark.usefixtures("forget_user_plants")``."""
+    from mitlc.plants import PLANTS
+    from mitlc.plants import user as U
+
+    before, sources, origins = dict(PLANTS), list(U.SOURCES), dict(U._ORIGINS)
+    yield
+    PLANTS.clear()
+    PLANTS.update(before)
+    U.SOURCES[:] = sources
+    U._ORIGINS.clear()
+    U._ORIGINS.update(origins)

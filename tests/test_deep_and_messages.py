@@ -15,8 +15,7 @@ from click.testing import CliRunner
 
 from mitlc.cli import main
 from mitlc.errors import InputError
-from mitlc.plants import PLANTS, Plant, StateVar
-from mitlc.plants import user as U
+from mitlc.plants import Plant, StateVar
 from mitlc.sweep.backends import probe_ray_address
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -296,15 +295,6 @@ def test_sweep_on_a_bogus_ray_address_is_one_line_in_seconds(tmp_path):
 # ---------------------------------------------------------------- plants
 
 
-@pytest.fixture
-def _forget_user_plants():
-    before, sources = dict(PLANTS), list(U.SOURCES)
-    yield
-    PLANTS.clear()
-    PLANTS.update(before)
-    U.SOURCES[:] = sources
-
-
 def _plant(**kw):
     args = {
         "name": "cart",
@@ -365,7 +355,7 @@ FLAT = Plant(name="flatcart", state=(StateVar("x", -2.0, 2.0), StateVar("v", -3.
 """
 
 
-@pytest.mark.usefixtures("_forget_user_plants")
+@pytest.mark.usefixtures("forget_user_plants")
 @pytest.mark.parametrize(
     "plant,line,message",
     [
@@ -388,7 +378,7 @@ def test_dynamics_that_raise_or_return_the_wrong_shape_are_one_line_naming_plant
     assert one_error(r) == f"{path.resolve()}:{line}: error: {message}"
 
 
-@pytest.mark.usefixtures("_forget_user_plants")
+@pytest.mark.usefixtures("forget_user_plants")
 def test_a_plant_file_building_a_bad_plant_is_one_line_naming_it(tmp_path):
     path = tmp_path / "bad.py"
     path.write_text(
@@ -430,7 +420,7 @@ SLED = Plant(name="sled", state=(StateVar("x", -2.0, 2.0), StateVar("v", -3.0, 3
 """
 
 
-@pytest.mark.usefixtures("_forget_user_plants")
+@pytest.mark.usefixtures("forget_user_plants")
 def test_an_overflow_in_training_is_said_once(tmp_path):
     plant = tmp_path / "sled.py"
     plant.write_text(OVERFLOWING_PLANT)

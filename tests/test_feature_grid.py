@@ -45,13 +45,7 @@ CHAIN = Plant(
 '''
 
 
-@pytest.fixture(autouse=True)
-def _forget_user_plants():
-    before, sources = dict(PLANTS), list(U.SOURCES)
-    yield
-    PLANTS.clear()
-    PLANTS.update(before)
-    U.SOURCES[:] = sources
+pytestmark = pytest.mark.usefixtures("forget_user_plants")  # tests/conftest.py
 
 
 def _chain(tmp_path: Path, n: int) -> tuple[Path, Path]:

@@ -19,7 +19,6 @@ from mitlc.learn.policy import load_policy, load_sacpn
 from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
 from mitlc.petri.compile import compile_spec
 from mitlc.plants import PLANTS, InputVar, Plant, StateVar, make_integrator
-from mitlc.plants import user as U
 from mitlc.spec.parse import load_spec, parse_spec
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -46,13 +45,7 @@ def one_error(r) -> str:
     return r.stderr.rstrip("\n").splitlines()[0]
 
 
-@pytest.fixture(autouse=True)
-def _forget_user_plants():
-    before, sources = dict(PLANTS), list(U.SOURCES)
-    yield
-    PLANTS.clear()
-    PLANTS.update(before)
-    U.SOURCES[:] = sources
+pytestmark = pytest.mark.usefixtures("forget_user_plants")  # tests/conftest.py
 
 
 def _plant(**kw) -> Plant:

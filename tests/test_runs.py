@@ -17,7 +17,6 @@ import mitlc
 from mitlc.cli.main import main
 from mitlc.cli.outputs import read_manifest
 from mitlc.plants import PLANTS
-from mitlc.plants import user as U
 from tests.conftest import P2_SHORT
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -39,15 +38,7 @@ def sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-@pytest.fixture(autouse=True)
-def _forget_user_plants():
-    before, sources, origins = dict(PLANTS), list(U.SOURCES), dict(U._ORIGINS)
-    yield
-    PLANTS.clear()
-    PLANTS.update(before)
-    U.SOURCES[:] = sources
-    U._ORIGINS.clear()
-    U._ORIGINS.update(origins)
+pytestmark = pytest.mark.usefixtures("forget_user_plants")  # tests/conftest.py
 
 
 # ---------------------------------------------------------------- item 2: the plant

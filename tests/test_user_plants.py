@@ -17,13 +17,7 @@ CART = ROOT / "examples" / "cart" / "cart_plant.py"
 CART_SPEC = ROOT / "examples" / "cart" / "cart.mitl"
 
 
-@pytest.fixture(autouse=True)
-def _forget_user_plants():
-    before, sources = dict(PLANTS), list(U.SOURCES)
-    yield
-    PLANTS.clear()
-    PLANTS.update(before)
-    U.SOURCES[:] = sources
+pytestmark = pytest.mark.usefixtures("forget_user_plants")  # tests/conftest.py
 
 
 def test_the_cart_example_learns_from_the_command_line(tmp_path) -> None:
