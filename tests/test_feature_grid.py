@@ -158,3 +158,84 @@ def test_a_sweep_resolves_the_grid_so_its_task_keys_stay(tmp_path):
     U.load_plants(str(plant))
     chain = parse_spec("plant chain4\ninit x1 in [-1, 1]\nhorizon 1\nprop near = abs(x1) < 0.2\nformula F G near\n")
     assert plan_sweep(chain, [], [0], 1, 1).tasks[0].payload["settings"]["rbf"] == [3, 3, 3, 3]
+
+
+# ---------------------------------------------------------------- the grid's range from the spec
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from mitlc.learn.features import GRID_MARGIN, GRID_SAMPLES, spec_grid  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(-4.5, 4.5),
+    st.floats(0.05, 4.0),
+    st.floats(-4.9, 4.9),
+    st.booleans(),
+)
+def test_the_spec_grid_spans_thresholds_and_init_widened_by_the_margin(lo, width, start, absolute):
+    """Against the thresholds written down: ``lo < qdot < lo + width`` (or ``abs(qdot - lo) < width``) on the
+    mass-damper (qdot's box [-5, 5]) with ``qdot = start`` at the start; q's prop is two-variable, so q is left out."""
+    hi = min(lo + width, 4.95)
+    prop = f"abs(qdot - {lo!r}) < {width!r}" if absolute else f"{lo!r} < qdot < {hi!r}"
+    marks = [lo - width, lo + width] if absolute else [lo, hi]
+    marks = [m for m in marks if -5 < m < 5]
+    spec = parse_spec(
+        f"plant mass-damper\ninit q = 0, qdot = {start!r}\nprop p = {prop}\nprop r = q + qdot > 0\nformula F p & G r\n"
+    )
+    grid = spec_grid(spec)
+    assert "q" not in grid
+    if not marks:
+        assert grid == {}
+        return
+    a, b = min(marks + [start]), max(marks + [start])
+    pad = GRID_MARGIN * max(b - a, 1e-3 * 10)
+    want = (max(-5.0, a - pad), min(5.0, b + pad))
+    step = 10 / (GRID_SAMPLES - 1)
+    assert grid["qdot"] == pytest.approx(want, abs=step * (1 + GRID_MARGIN))
+
+
+def test_the_spec_grid_by_hand_and_where_it_stays_the_plants():
+    speed = parse_spec(
+        "plant mass-damper\ninit q in [-1, -0.8], qdot = 0\nprop far = abs(q - 0.9) < 0.1\n"
+        "prop fast = abs(qdot) > 1\nformula F[0,3] G far & G !fast\n"
+    )
+    grid = spec_grid(speed)  # q: thresholds 0.8, 1.0 and init -1..-0.8 -> [-1, 1] padded, clipped to the box
+    assert grid["q"] == pytest.approx((-1.0, 1.0)) and grid["qdot"] == pytest.approx((-2.0, 2.0), abs=3e-3)
+    # the pendulum: q is an angle (periodic, left out); qdot's grid is Table 4-4's [-20, 20], not the box's 15 pi
+    p3 = load_spec(ROOT / "specs/pendulum/p2_avoid.mitl")
+    assert spec_grid(p3) == {}
+    slow = parse_spec("plant pendulum\nprop up = abs(q) < 0.2\nprop fast = abs(qdot) > 30\nformula F up & G !fast\n")
+    assert spec_grid(slow) == {"qdot": (-20.0, 20.0)}
+    agent = Sacpn(compile_spec(speed), SacpnSettings(trial_s=0.3), runs=1, seed=0)
+    assert agent.features.bounds[1] == pytest.approx((-2.0, 2.0), abs=3e-3)
+    plant = Sacpn(compile_spec(speed), SacpnSettings(trial_s=0.3, feature_grid="plant"), runs=1, seed=0)
+    assert plant.features.bounds == ((-1.0, 1.0), (-5.0, 5.0))
+    given_ = Sacpn(compile_spec(speed), SacpnSettings(trial_s=0.3, feature_bounds=(("qdot", -3.0, 3.0),)), runs=1, seed=0)
+    assert given_.features.bounds[1] == (-3.0, 3.0)
+
+
+def test_a_checkpoint_without_feature_grid_was_trained_on_the_plants_grid():
+    assert SacpnSettings.from_dict({"gamma": 0.97}).feature_grid == "plant"
+    assert SacpnSettings.from_dict(SacpnSettings().to_dict()).feature_grid == "spec"
+
+
+def test_the_discount_follows_the_trial_length():
+    """``gamma = 1 - 3 / N``: Table 4-4's 0.97 at the pendulum's 100 steps, to the bit."""
+    rs = compile_spec(load_spec(ROOT / "specs/pendulum/p2_avoid.mitl"))
+    assert Sacpn(rs, SacpnSettings(), runs=1, seed=0).gamma == 0.97
+    long = Sacpn(rs, SacpnSettings(trial_s=6.0), runs=1, seed=0)
+    assert long.gamma == pytest.approx(1 - 3 / 200) and long.settings.gamma == long.gamma
+    assert Sacpn(rs, SacpnSettings(trial_s=6.0, gamma=0.9), runs=1, seed=0).gamma == 0.9
+    assert Sacpn(rs, SacpnSettings(trial_s=0.09), runs=1, seed=0).gamma == 0.5  # 3 steps: floored
+
+
+def test_a_bad_plant_grid_is_refused():
+    from mitlc.plants import StateVar
+
+    with pytest.raises(ValueError, match="grid must be two finite numbers"):
+        StateVar("v", -1.0, 1.0, grid=(2.0, 1.0))
+    with pytest.raises(ValueError, match="grid must be two finite numbers"):
+        StateVar("v", -1.0, 1.0, grid=(0.0, math.inf))

@@ -253,3 +253,33 @@ def test_the_net_does_not_grow_with_the_bounds_or_the_sample_period(formula: str
         assert rs.timed
         shapes.add((rs.net.place_names, rs.net.D.shape))
     assert len(shapes) == 1
+
+
+@pytest.mark.parametrize(
+    ("formula", "rewards"),
+    [
+        # F[0,1] G a: a never holds in the window, so the obligation fails at t = 1 (sample 2); from
+        # then on the net pays what it still needs (a's +1 / -1) less one: 0 with a, -2 without
+        ("F[0,1] G a", [-1.0, -1.0, -2.0, 0.0, 0.0, -2.0, 0.0, 0.0]),
+        # 2 * (F[0,1] G a): the weight scales the failed term as it does the rest
+        ("2 * F[0,1] G a", [-2.0, -2.0, -4.0, 0.0, 0.0, -4.0, 0.0, 0.0]),
+    ],
+)
+def test_a_failed_obligation_still_pulls_towards_what_it_needs(formula: str, rewards: list[float]) -> None:
+    """Once a timed obligation has failed, paying 0 would beat trying (-1 per step away from the goal)
+    and learners learned to give up; the failed place pays the state formula it needs, less one."""
+    from mitlc.petri.compile import compile_spec
+    from mitlc.runtime import NetRuntime
+
+    spec = parse_spec(f"plant pendulum(dt = 0.5)\nhorizon 4\nprop a = q > 0\nprop b = qdot > 0\nformula {formula}\n")
+    rs = compile_spec(spec)
+    assert "p_failed_" in str(rs.reward)
+    q = [-1, -1, -1, -1, 1, 1, -1, 1, 1]
+    x = np.array([[[v, 0.0] for v in q]], dtype=float)
+    rt = NetRuntime(rs)
+    M, got = rt.reset(x[:, 0]), []
+    for k in range(8):
+        M1 = rt.step(M, x[:, k + 1], (k + 1) * 0.5)
+        got.append(float(rt.reward(M, M1)[0]))
+        M = M1
+    assert got == rewards

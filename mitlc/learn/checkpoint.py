@@ -304,13 +304,13 @@ def _check_meta(meta: dict[str, Any]) -> str:
 
 def _grid_of(settings: dict[str, Any], names: list[str]) -> None:
     """A SACPN checkpoint's feature grid agrees with the state it was trained on (``state_names``):
-    one ``rbf`` count per variable, ``feature_bounds`` of its variables (or the default entries)."""
-    from mitlc.learn.sacpn import SacpnSettings
+    one ``rbf`` count per variable, ``feature_bounds`` of its variables (or the former default's entry)."""
+    from mitlc.learn.sacpn.sacpn import FORMER_DEFAULT_BOUNDS
 
     rbf = settings.get("rbf")
     if rbf is not None and len(rbf) != len(names):
         raise _Bad("settings.rbf", f"has {_count(len(rbf), 'count')}, not one per state variable ({', '.join(names)})")
-    defaults = {tuple(e) for e in SacpnSettings().feature_bounds}
+    defaults = set(FORMER_DEFAULT_BOUNDS)
     for i, entry in enumerate(settings.get("feature_bounds", ())):
         if entry[0] not in names and tuple(entry) not in defaults:
             raise _Bad(

@@ -39,13 +39,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mitlc.errors import TrainingError
 from mitlc.plants import StateVar
 
-__all__ = ["Axis", "RbfFeatures", "default_rbf", "RBF_PER_VARIABLE", "RBF_BUDGET"]
+if TYPE_CHECKING:
+    from mitlc.spec.model import Spec
+
+__all__ = ["Axis", "RbfFeatures", "default_rbf", "spec_grid", "GRID_MARGIN", "RBF_PER_VARIABLE", "RBF_BUDGET"]
 
 RBF_PER_VARIABLE = 10
 """Centres per variable for one or two state variables (Table 4-4: 10 x 10)."""
@@ -140,14 +144,14 @@ class RbfFeatures:
         width: float = 1.0,
         bounds: Mapping[str, tuple[float, float]] | None = None,
     ) -> RbfFeatures:
-        """A grid over a plant's state variables (angles periodic), ``bounds`` overriding
-        the plant's range of some of them (SACPN's ``feature_bounds``)."""
+        """A grid over a plant's state variables (angles periodic), each over the variable's
+        ``grid`` or else its box, ``bounds`` overriding that for some (SACPN's ``feature_bounds``)."""
         if len(counts) != len(state):
             raise TrainingError(f"rbf has {len(counts)} entries, the plant has {len(state)} state variables")
         over = dict(bounds or {})
         axes = []
         for v, n in zip(state, counts, strict=True):
-            lo, hi = over.get(v.name, (v.lo, v.hi))
+            lo, hi = over.get(v.name, v.grid or (v.lo, v.hi))
             axes.append(Axis(v.name, lo, hi, int(n), periodic=v.periodic))
         return cls(axes, width)
 
@@ -208,3 +212,64 @@ class RbfFeatures:
             out[...] = phi
             return out
         return phi
+
+
+GRID_MARGIN = 0.5
+"""How far past the thresholds and the initial set a spec-derived grid reaches, as a fraction
+of their span on each side (chosen on the task suite: docs/suite.md)."""
+
+
+GRID_SAMPLES = 4001
+"""Samples along a variable's box at which :func:`spec_grid` looks for a proposition's thresholds."""
+
+
+def spec_grid(spec: Spec) -> dict[str, tuple[float, float]]:
+    """Feature ranges that follow from a spec: per non-periodic state variable that some
+    proposition of that variable alone bounds, the span of those thresholds and the ``init``
+    range, widened by :data:`GRID_MARGIN` of it on each side and kept within the plant's grid
+    (:attr:`~mitlc.plants.StateVar.grid` or box). A variable no proposition bounds keeps the
+    plant's grid (it is left out). The thresholds are where the proposition's truth changes
+    along the variable's box (sampled at :data:`GRID_SAMPLES` points: any one-variable
+    predicate, read as data, never evaluated as code).
+
+    A speed limit of 1 m/s on a plant whose velocity box is 5 m/s puts the velocity's centres
+    over [-2, 2] instead of [-5, 5]: two and a half times finer where the spec decides.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> spec = parse_spec('''plant mass-damper
+    ... init q in [-1, -0.8], qdot = 0
+    ... prop far = abs(q - 0.9) < 0.1
+    ... prop fast = abs(qdot) > 1
+    ... formula F[0,3] G far & G !fast''')
+    >>> {k: (round(a, 2), round(b, 2)) for k, (a, b) in spec_grid(spec).items()}
+    {'q': (-1.0, 1.0), 'qdot': (-2.0, 2.0)}
+    """
+    from mitlc.spec.predicates import evaluate, variables
+
+    plant = spec.plant
+    if plant is None:
+        return {}
+    state = {v.name: v for v in plant.state}
+    marks: dict[str, list[float]] = {}
+    for p in spec.props:
+        names = {v.name for v in variables(p.pred)}
+        if len(names) != 1 or not names <= state.keys():
+            continue
+        v = state[names.pop()]
+        z = np.linspace(v.lo, v.hi, GRID_SAMPLES)
+        truth = np.broadcast_to(evaluate(p.pred, {v.name: z}), z.shape)
+        flips = np.flatnonzero(truth[1:] != truth[:-1])
+        marks.setdefault(v.name, []).extend((0.5 * (z[flips] + z[flips + 1])).tolist())
+    out: dict[str, tuple[float, float]] = {}
+    for v in plant.state:
+        points = marks.get(v.name)
+        if v.periodic or not points:
+            continue
+        glo, ghi = v.grid or (v.lo, v.hi)
+        points = points + [b for r in spec.init if r.var == v.name for b in (r.lo, r.hi)]
+        lo, hi = min(points), max(points)
+        pad = GRID_MARGIN * max(hi - lo, 1e-3 * (ghi - glo))
+        lo, hi = max(glo, lo - pad), min(ghi, hi + pad)
+        if hi - lo > 1e-3 * (ghi - glo):
+            out[v.name] = (float(lo), float(hi))
+    return out

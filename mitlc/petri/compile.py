@@ -508,7 +508,40 @@ class _Builder(ViolationWatches):
             )
             return R.Sum((own, waiting))
 
-        return rew(f)
+        def chase(g: A.Formula) -> R.RExpr | None:
+            """The reward of the state formula ``g`` ultimately needs, intervals ignored: the
+            child of ``F``, ``G``, the right side of ``U``, ``R``; the min (``&``) or max (``|``)."""
+            w, core = peel_weights(g)
+            if is_state_formula(core):
+                return R.scale(w, self.reward(core, ctx, True))
+            if isinstance(core, (A.And, A.Or)):
+                known = [h for h in (chase(core.left), chase(core.right)) if h is not None]
+                if not known:
+                    return None
+                h = (
+                    known[0]
+                    if len(known) == 1
+                    else (R.Min(tuple(known)) if isinstance(core, A.And) else R.Max(tuple(known)))
+                )
+                return R.scale(w, h)
+            if isinstance(core, (A.Globally, A.Eventually)):
+                child = chase(core.child)
+            elif isinstance(core, (A.Until, A.Release)):
+                child = chase(core.right)
+            else:
+                return None
+            return None if child is None else R.scale(w, child)
+
+        body = rew(f)
+        need = chase(f)
+        if tree.root not in names or need is None:
+            return body
+        # Once the obligation has failed nothing it pays is live any more; a failed run that paid 0
+        # from then on would beat one still trying (-1 per step away from the goal), and learners
+        # learn to give up. It pays what the formula still needs, less one, so failing never pays
+        # and the goal still pulls.
+        failed = R.Gated(tokens([names[tree.root]["failed"]], prev=True), R.Sum((need, R.Const(-1.0))))
+        return R.Sum((body, failed))
 
     def _gated_within(self, e: R.RExpr, phase: frozenset[int]) -> bool:
         names = {self.segments[i] for i in phase}

@@ -84,6 +84,9 @@ class StateVar:
     lo: float
     hi: float
     periodic: bool = False
+    grid: tuple[float, float] | None = None
+    """Where a learner's feature grid lies when it should be narrower than ``[lo, hi]`` (the
+    pendulum's velocity: its box, 15 pi, is far wider than any swing); ``None``: the box."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -97,6 +100,13 @@ class StateVar:
             )
         object.__setattr__(self, "lo", float(self.lo))
         object.__setattr__(self, "hi", float(self.hi))
+        if self.grid is not None:
+            g = tuple(self.grid)
+            if not (len(g) == 2 and all(_real(b) and math.isfinite(b) for b in g) and g[0] < g[1]):
+                raise ValueError(
+                    f"state variable '{self.name}': its grid must be two finite numbers with lo < hi, got {self.grid!r}"
+                )
+            object.__setattr__(self, "grid", (float(g[0]), float(g[1])))
 
 
 @dataclass(frozen=True)

@@ -168,7 +168,10 @@ def _pendulum_kernel(plant: Plant, p: Mapping[str, float], jit: Callable) -> tup
 PENDULUM = register(
     Plant(
         name="pendulum",
-        state=(StateVar("q", -math.pi, math.pi, periodic=True), StateVar("qdot", -15 * math.pi, 15 * math.pi)),
+        state=(
+            StateVar("q", -math.pi, math.pi, periodic=True),
+            StateVar("qdot", -15 * math.pi, 15 * math.pi, grid=(-20.0, 20.0)),
+        ),
         defaults={
             "J": 1.91e-4,
             "M": 5.50e-2,

@@ -59,7 +59,7 @@ import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -67,13 +67,14 @@ from mitlc.errors import InputError, MitlError, TrainingError
 from mitlc.fileio import npz_bytes, save_npz
 from mitlc.learn.checkpoint import load_state, read_checkpoint
 from mitlc.learn.checkpoint import read_meta as _read_meta
-from mitlc.learn.features import RbfFeatures, default_rbf
+from mitlc.learn.features import RbfFeatures, default_rbf, spec_grid
 from mitlc.learn.settings import (
     Settings,
     check_fraction,
     check_grid,
     check_non_negative,
     check_range,
+    from_dict,
     json_default,
 )
 from mitlc.limits import (
@@ -101,12 +102,25 @@ _KERNELS: dict[tuple, Callable] = {}
 learner built again on the same problem does not compile again."""
 
 
+FORMER_DEFAULT_BOUNDS = (("qdot", -20.0, 20.0),)
+"""``feature_bounds``'s default until the task suite chose the plants' own grids: settings that
+carry it (a checkpoint's) are taken for plants without a ``qdot`` too, which it did not touch."""
+
+
+LEGACY_SETTINGS = {"feature_grid": "plant"}
+"""What settings written before these were named (a checkpoint's) were trained with."""
+
+
 @dataclass(frozen=True)
 class SacpnSettings(Settings):
     """Settings of the SACPN learner; defaults are Table 4-4 where the thesis gives them."""
 
-    gamma: float = 0.97
-    """Discount factor (Table 4-4)."""
+    gamma: float | None = None
+    """Discount factor; ``None`` (the default): ``1 - 3 / N`` for a trial of ``N`` steps, so that
+    the discount's effective horizon ``1 / (1 - gamma)`` is a third of the trial whatever the
+    plant's ``dt`` and the spec's horizon: Table 4-4's 0.97 for the pendulum's 100 steps
+    (3 s at 0.03 s), chosen on the task suite (docs/suite.md). The learner's
+    :attr:`Sacpn.settings` hold the value it took."""
 
     lam: float = 0.67
     """Eligibility trace decay lambda (Table 4-4)."""
@@ -126,11 +140,18 @@ class SacpnSettings(Settings):
     rbf_width: float = 1.0
     """Gaussian width as a multiple of the centre spacing (thesis silent)."""
 
-    feature_bounds: tuple[tuple[str, float, float], ...] = (("qdot", -20.0, 20.0),)
-    """Feature grid range per variable, overriding the plant bounds: ``(name, lo, hi)``.
-    The pendulum's velocity bound (15 pi) is far wider than any swing; 10 centres over
-    it would leave about two across the whole useful range. Values outside are clipped
-    for the features only. Names the plant does not have are ignored."""
+    feature_bounds: tuple[tuple[str, float, float], ...] = ()
+    """Feature grid range per variable, overriding the plant's: ``(name, lo, hi)``. Without
+    an entry a variable's grid is the plant's (:attr:`~mitlc.plants.StateVar.grid`, else its
+    box: the pendulum's velocity over [-20, 20], Table 4-4's range, not its 15 pi bound).
+    Values outside are clipped for the features only."""
+
+    feature_grid: str = "spec"
+    """Where the feature grid lies: ``spec`` (the default), over the thresholds of the spec's
+    one-variable propositions and its ``init`` range, widened by half their span each side
+    (:func:`~mitlc.learn.features.spec_grid`), for the variables they bound; ``plant``: the
+    plant's grid (its :attr:`~mitlc.plants.StateVar.grid`, else its box) for every variable.
+    ``feature_bounds`` overrides either."""
 
     sigma: float | None = None
     """Exploration standard deviation of the input; ``None``: ``sigma_frac * u_max``. A plant
@@ -181,6 +202,12 @@ class SacpnSettings(Settings):
     (environments, user plants without ``kernel_step``, untabulated rewards, timed
     obligations with compact tables) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> SacpnSettings:
+        """From :meth:`to_dict` data; a checkpoint that names no ``feature_grid`` was trained on
+        the plant's grid (:data:`LEGACY_SETTINGS`)."""
+        return from_dict(cls, {**LEGACY_SETTINGS, **d})
+
     def resolved(self, plant: Plant) -> SacpnSettings:
         """These settings with what follows from ``plant`` filled in: the default ``rbf``
         grid (:func:`~mitlc.learn.features.default_rbf` of its number of state variables);
@@ -212,9 +239,13 @@ class SacpnSettings(Settings):
             raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
         if self.kernel not in ("auto", "numpy", "numba"):
             raise TrainingError(f"unknown kernel '{self.kernel}' (auto, numpy or numba)")
+        if self.feature_grid not in ("spec", "plant"):
+            raise TrainingError(f"unknown feature_grid '{self.feature_grid}' (spec or plant)")
         if self.violation_value not in ("known", "learned"):
             raise TrainingError(f"unknown violation_value '{self.violation_value}' (known or learned)")
-        check_fraction(self, ("gamma", "lam", "penalty_ramp"))
+        check_fraction(self, ("lam", "penalty_ramp"))
+        if self.gamma is not None:
+            check_fraction(self, ("gamma",))
         check_non_negative(self, ("alpha_c", "alpha_a"))
         check_range(self, ("sigma_frac",), 0.0, MAX_SIGMA_FRAC)
         check_range(self, ("rbf_width",), MIN_RBF_WIDTH, MAX_RBF_WIDTH)
@@ -377,6 +408,11 @@ class Sacpn:
             self.n_steps = check_steps(self.trial_s, self.dt, "a trial")
         except ValueError as exc:
             raise TrainingError(str(exc), file=spec.path, hint="a shorter trial_s or horizon, a larger dt") from None
+        if settings.gamma is None:  # the effective horizon a third of the trial (at least 0.5)
+            settings = replace(settings, gamma=max(0.5, 1.0 - 3.0 / self.n_steps))
+            self.settings = settings
+        self.gamma: float = float(settings.gamma)  # type: ignore[arg-type]
+        """The discount taken: ``settings.gamma``, or ``1 - 3 / N`` for a trial of ``N`` steps."""
         self.runtime = NetRuntime(rs, plant.state_names, dt=self.dt, steps=self.n_steps)
         if self.runtime.tables is None:
             raise TrainingError(
@@ -404,19 +440,19 @@ class Sacpn:
                 m = tables.markings.astype(np.int64)
                 self._pen = rs.penalty * np.asarray(rs.charge.evaluate(m, m), dtype=float)
             self._pen_left = np.array(
-                [sum(settings.gamma**j for j in range(self.n_steps - k)) for k in range(self.n_steps + 1)]
+                [sum(self.gamma**j for j in range(self.n_steps - k)) for k in range(self.n_steps + 1)]
             )
         self._marked_c = self._marked if self._known else tables.marked
         self.n_tokens = len(acting)
         self.n_tokens_c = self._marked_c.shape[1]
-        default_bounds = set(SacpnSettings.__dataclass_fields__["feature_bounds"].default)  # type: ignore[arg-type]
         for entry in settings.feature_bounds:
-            if entry[0] not in plant.state_names and tuple(entry) not in default_bounds:
+            if entry[0] not in plant.state_names and tuple(entry) not in FORMER_DEFAULT_BOUNDS:
                 raise TrainingError(
                     f"feature_bounds names '{entry[0]}', which plant '{plant.name}' does not have "
                     f"(its variables: {', '.join(plant.state_names)})"
                 )
-        bounds = {n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names}
+        bounds = spec_grid(spec) if settings.feature_grid == "spec" else {}
+        bounds.update({n: (lo, hi) for n, lo, hi in settings.feature_bounds if n in plant.state_names})
         assert settings.rbf is not None  # resolved
         self.features = RbfFeatures.for_state(plant.state, settings.rbf, settings.rbf_width, bounds)
         self.n_features = self.features.n_features
@@ -565,7 +601,7 @@ class Sacpn:
             trial(
                 x, noise, code0, xi, self.theta, ret, tables.next_code, clock, reward_tab, reward_full,
                 marked, marked_c, pen, pen_left, pc, nwork, *fc,
-                st.gamma, st.gamma * st.lam, st.alpha_c, st.alpha_a, u_lo, u_hi,
+                self.gamma, self.gamma * st.lam, st.alpha_c, st.alpha_a, u_lo, u_hi,
                 1.0 / self.n_tokens, 1.0 / self.n_tokens_c,
                 st.mask == "current", st.saturation == "applied", bool(st.bootstrap_timeout), bool(self._known),
                 s_pen >= 1.0,
@@ -728,7 +764,7 @@ class Sacpn:
         atom_code, features, integrate, clock = rt.atom_code, self.features, self.integrate, self._clock
         timed, advance = bool(rt.timed), rt.advance_code
         plain = dense and not timed
-        gamma, gl = st.gamma, st.gamma * st.lam
+        gamma, gl = self.gamma, self.gamma * st.lam
         a_c, a_a = st.alpha_c, st.alpha_a
         m, u_lo, u_hi = self.n_inputs, self.u_lo, self.u_hi  # each input saturated to its own box
         current = st.mask == "current"
