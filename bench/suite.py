@@ -97,21 +97,34 @@ def _fresh_starts(agent, n: int, seed: int) -> np.ndarray:
 def train_task(job: tuple) -> dict:
     """One training of one task, as ``mitlc train`` builds it; the record the page reads."""
     name, spec_path, seed, runs, trials, sets, options = job
-    from mitlc.cli.train import _judge
+    from mitlc.cli.train import _judge, _race_judge
     from mitlc.learn.sacpn import Sacpn, SacpnSettings
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec
+    from mitlc.sweep.race import RACED, race
 
     spec = load_spec(spec_path)
     settings = SacpnSettings(**parse_assignments(SacpnSettings, list(sets)))
     compile_options = CompileOptions.from_spec(spec, **dict(options))
     rs = compile_spec(spec, compile_options)
-    agent = Sacpn(rs, settings, runs=runs, seed=seed)
-    if rs.paid_by_monitor:
-        from mitlc.monitor.rewards import pay
 
-        pay(agent)
+    def build(st: SacpnSettings, r: int, s: int) -> Sacpn:
+        a = Sacpn(rs, st, runs=r, seed=s)
+        if rs.paid_by_monitor:
+            from mitlc.monitor.rewards import pay
+
+            pay(a)
+        return a
+
+    t0 = time.perf_counter()
+    given = {a.split("=", 1)[0] for a in sets}
+    raced = None
+    if not given & RACED:  # as mitlc train does: race the exploration designs first
+        raced = race(build, lambda a: _race_judge(spec, a), settings, runs, trials, seed)
+        settings = raced.settings
+    race_s = time.perf_counter() - t0
+    agent = build(settings, runs, seed)
     every = max(1, trials // CURVE_POINTS)
     curve: list[tuple[int, float]] = []
     spent = [0.0]
@@ -125,9 +138,8 @@ def train_task(job: tuple) -> dict:
             curve.append((trial, float(np.mean(ok))))
             spent[0] += time.perf_counter() - t0
 
-    t0 = time.perf_counter()
     agent.train(trials, callback=judge_now, total=trials)
-    wall = time.perf_counter() - t0 - spent[0]
+    wall = time.perf_counter() - t0 - spent[0]  # the race included
     final = _judge(spec, agent.rollout(agent.evaluation_states())).satisfied  # as mitlc train judges
     fresh = _judge(spec, agent.rollout(_fresh_starts(agent, FRESH, seed))).satisfied
     return {
@@ -144,6 +156,8 @@ def train_task(job: tuple) -> dict:
         "curve": curve,
         "wall_s": round(wall, 2),
         "diverged": int(np.sum(agent.diverged >= 0)),
+        "race": raced.record() if raced is not None else None,
+        "race_s": round(race_s, 2),
     }
 
 

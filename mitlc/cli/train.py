@@ -149,8 +149,17 @@ def _judge(spec, ro):
         raise exc.located("the rollouts") from None
 
 
-def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) -> tuple[dict[str, bytes | str], dict]:
-    """The output set of a training, in memory: ``{file name: content}`` and the metrics."""
+def _race_judge(spec, agent) -> tuple[np.ndarray, np.ndarray]:
+    """A raced learner's final greedy policies from their evaluation starts: the monitor's verdicts and the returns."""
+    ro = agent.rollout(agent.evaluation_states())
+    return _judge(spec, ro).satisfied, ro.returns
+
+
+def _outputs(
+    agent, spec, wall_s: float, interrupted: bool, plots: bool = True, raced: dict | None = None
+) -> tuple[dict[str, bytes | str], dict]:
+    """The output set of a training, in memory: ``{file name: content}`` and the metrics (``raced``:
+    the exploration race that chose the settings, :meth:`mitlc.sweep.race.Race.record`)."""
     from mitlc.learn.plots import learning_curve, png_bytes
 
     files: dict[str, bytes | str] = {PARAMS: agent.to_bytes()}
@@ -174,6 +183,8 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
         "diverged": diverged,
         "returns": agent.returns.round(6),
     }
+    if raced is not None:
+        metrics["race"] = raced
     if not interrupted and agent.trial > 0:
         x0 = agent.evaluation_states()  # one per run, from its evaluation stream (mitlc simulate --starts train)
         ro = agent.rollout(x0)
@@ -267,6 +278,20 @@ def _outputs(agent, spec, wall_s: float, interrupted: bool, plots: bool = True) 
     help="Any trainer setting (repeat), e.g. --set alpha_a=0.08 --set rbf=10x10x5: SacpnSettings "
     "for a formula spec, HyrlSettings for a 'require' spec (mitlc docs training, mitlc docs hyrl).",
 )
+@click.option(
+    "--preset",
+    type=click.Choice(["default", "thesis"]),
+    default="default",
+    show_default=True,
+    help="thesis: Table 4-4's settings as chapter 4 trained (gamma 0.97, the plant's grid, width 1, "
+    "sigma_frac 0.3), no race; --set changes either.",
+)
+@click.option(
+    "--no-race",
+    is_flag=True,
+    help="Train with sigma_frac 0.3 straight away, without first racing the exploration designs "
+    "(mitlc docs training; the race is skipped too when --sigma or --set sigma/sigma_frac is given).",
+)
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option(
     "--checkpoint-every",
@@ -302,6 +327,8 @@ def train(
     mask,
     saturation,
     assignments,
+    preset,
+    no_race,
     no_plots,
     checkpoint_every,
     quiet,
@@ -311,6 +338,7 @@ def train(
     from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.sweep.race import RACED, race
 
     meta = None
     if resume_dir is not None:
@@ -334,7 +362,7 @@ def train(
                 raise InputError("give --plant or --spec", file="mitlc train")
             spec_path = str(find_default_spec(plant_name))
         spec = _load(spec_path)
-        base = SacpnSettings()
+        base = SacpnSettings.thesis() if preset == "thesis" else SacpnSettings()
         out = Path(out_dir) if out_dir else None  # None: a new runs/<spec>_<N> (output_set)
     if plant_name is not None and spec.plant_name != plant_name:
         raise InputError(f"the spec is for plant '{spec.plant_name}', not '{plant_name}'", file=spec.path)
@@ -370,19 +398,49 @@ def train(
     rs = compile_spec(spec, options)
     for w in rs.warnings:
         click.echo(w, err=True)
-    agent = Sacpn(rs, settings, runs=runs, seed=seed)
-    if rs.paid_by_monitor:  # sparse, robustness, robustness-window
-        from mitlc.monitor.rewards import pay
 
-        pay(agent)
+    def build(st, r: int, s: int):
+        a = Sacpn(rs, st, runs=r, seed=s)
+        if rs.paid_by_monitor:  # sparse, robustness, robustness-window
+            from mitlc.monitor.rewards import pay
+
+            pay(a)
+        return a
+
     wall_before = 0.0
+    raced: dict | None = None
+    continuing = resume_dir is not None and out is not None and _same_folder(out, Path(resume_dir))
     if meta is not None:
+        agent = build(settings, runs, seed)
         agent.load(Path(resume_dir) / PARAMS)
         wall_before = _wall_before(Path(resume_dir))
-    continuing = resume_dir is not None and out is not None and _same_folder(out, Path(resume_dir))
-    outset = output_set(out, spec, continuing).open()  # before training: a folder that cannot be written fails now
+        raced = _read_json(Path(resume_dir) / "metrics.json").get("race")
+        outset = output_set(out, spec, continuing).open()
+    else:
+        outset = output_set(out, spec, continuing).open()  # before training: a folder that cannot be written fails now
+        try:
+            chosen = {a.split("=", 1)[0].strip() for a in assignments} | ({"sigma"} if sigma is not None else set())
+            if preset == "default" and not no_race and not chosen & RACED:
+                t0 = time.perf_counter()
+                result = race(
+                    build,
+                    lambda a: _race_judge(spec, a),
+                    settings,
+                    runs,
+                    trials,
+                    seed,
+                    None if quiet else lambda text: click.echo(text, err=True),
+                )
+                settings, raced = result.settings, result.record()
+                wall_before = time.perf_counter() - t0
+                if not quiet:
+                    click.echo(result.line(), err=True)
+            agent = build(settings, runs, seed)
+        except BaseException:
+            outset.close()
+            raise
     try:
-        _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots)
+        _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced)
     finally:
         outset.close()
 
@@ -436,7 +494,7 @@ def _read_json(path: Path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots) -> None:
+def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced=None) -> None:
     from mitlc.cli.progress import Progress, compile_notice
 
     out = outset.out
@@ -487,7 +545,7 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     bar.close()
     wall = wall_before + time.perf_counter() - start
     try:
-        files, metrics = _outputs(agent, spec, wall, interrupted, plots=not no_plots)
+        files, metrics = _outputs(agent, spec, wall, interrupted, plots=not no_plots, raced=raced)
         out = outset.write(
             files, first=PARAMS, trial=agent.trial, seed=agent.seed, runs=agent.runs, wall_s=round(wall, 3)
         )
