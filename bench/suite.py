@@ -102,7 +102,7 @@ def train_task(job: tuple) -> dict:
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec
-    from mitlc.sweep.race import RACED, race
+    from mitlc.sweep.race import race
 
     spec = load_spec(spec_path)
     settings = SacpnSettings(**parse_assignments(SacpnSettings, list(sets)))
@@ -119,9 +119,8 @@ def train_task(job: tuple) -> dict:
 
     t0 = time.perf_counter()
     given = {a.split("=", 1)[0] for a in sets}
-    raced = None
-    if not given & RACED:  # as mitlc train does: race the exploration designs first
-        raced = race(build, lambda a: _race_judge(spec, a), settings, runs, trials, seed)
+    raced = race(build, lambda a: _race_judge(spec, a), settings, runs, trials, seed, given=given)  # as mitlc train
+    if raced is not None:
         settings = raced.settings
     race_s = time.perf_counter() - t0
     agent = build(settings, runs, seed)

@@ -338,7 +338,7 @@ def train(
     from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
-    from mitlc.sweep.race import RACED, race
+    from mitlc.sweep.race import race
 
     meta = None
     if resume_dir is not None:
@@ -420,7 +420,7 @@ def train(
         outset = output_set(out, spec, continuing).open()  # before training: a folder that cannot be written fails now
         try:
             chosen = {a.split("=", 1)[0].strip() for a in assignments} | ({"sigma"} if sigma is not None else set())
-            if preset == "default" and not no_race and not chosen & RACED:
+            if preset == "default" and not no_race:
                 t0 = time.perf_counter()
                 result = race(
                     build,
@@ -430,11 +430,13 @@ def train(
                     trials,
                     seed,
                     None if quiet else lambda text: click.echo(text, err=True),
+                    given=chosen,
                 )
-                settings, raced = result.settings, result.record()
-                wall_before = time.perf_counter() - t0
-                if not quiet:
-                    click.echo(result.line(), err=True)
+                if result is not None:
+                    settings, raced = result.settings, result.record()
+                    wall_before = time.perf_counter() - t0
+                    if not quiet:
+                        click.echo(result.line(), err=True)
             agent = build(settings, runs, seed)
         except BaseException:
             outset.close()
