@@ -21,7 +21,7 @@ half, and ``--results FILE`` keeps such trials away from the docs page. Training
 under ``bench/suite/.cache/`` (by the code's digest, the task, the seed and the change): a
 stopped run resumes where it stopped, and a second run of the same command trains nothing.
 
-    python bench/suite.py                        # every task, 3 seeds: docs/suite.md, docs/suite.json
+    python bench/suite.py                        # every task, 3 seeds: docs/suite.md and .json, README's block
     python bench/suite.py --task cart_out_and_home --seeds 1
     python bench/suite.py --half tuning --set rbf_width=0.5 --results /tmp/width.json
     python bench/suite.py --render               # the page again from docs/suite.json
@@ -51,7 +51,7 @@ sys.path.insert(0, str(ROOT / "docs"))  # results_stats: the docs scripts' inter
 from results_stats import code_digest, interval, machine, run_cached  # noqa: E402
 
 from bench.suite import load_tasks, rollout  # noqa: E402  (the package bench/suite/, beside this script)
-from mitlc.fileio import atomic_write, json_text  # noqa: E402
+from mitlc.fileio import atomic_write, json_text, write_block  # noqa: E402
 
 SPLIT = ROOT / "bench" / "suite" / "split.json"
 
@@ -139,7 +139,9 @@ def train_task(job: tuple) -> dict:
 
     agent.train(trials, callback=judge_now, total=trials)
     wall = time.perf_counter() - t0 - spent[0]  # the race included
-    final = _judge(spec, agent.rollout(agent.evaluation_states())).satisfied  # as mitlc train judges
+    judged = _judge(spec, agent.rollout(agent.evaluation_states()))  # as mitlc train judges
+    final = judged.satisfied
+    failing = [str(f) for f in judged.failing if f is not None]  # the part each failed run broke
     fresh = _judge(spec, agent.rollout(_fresh_starts(agent, FRESH, seed))).satisfied
     return {
         "job": f"{name} seed {seed}",
@@ -156,6 +158,7 @@ def train_task(job: tuple) -> dict:
         "wall_s": round(wall, 2),
         "diverged": int(np.sum(agent.diverged >= 0)),
         "race": raced.record() if raced is not None else None,
+        "failing": {f: failing.count(f) for f in sorted(set(failing))},
         "race_s": round(race_s, 2),
     }
 
@@ -250,6 +253,64 @@ def summary(data: dict, names: list[str]) -> dict:
     }
 
 
+def _won(records: list[dict]) -> str:
+    """The race's winners over the seeds: ``sigma_frac=1 rbf_width=0.5 x2, ...``, or '-' without a race."""
+    names = [r["race"]["winner"] for r in records if r.get("race")]
+    if not names:
+        return "-"
+    return ", ".join(f"{n} x{names.count(n)}" for n in sorted(set(names), key=lambda n: -names.count(n)))
+
+
+def _misses(data: dict, names: list[str]) -> list[str]:
+    """Per task under 0.9: the parts of the formula its failed controllers broke (the monitor's
+    smallest failing subformula, counted over every seed's runs) and the race's winners."""
+    out = []
+    for n in names:
+        recs = data["tasks"][n]["records"]
+        if float(np.mean([r["success"] for r in recs])) >= 0.9:
+            continue
+        counts: dict[str, int] = {}
+        for r in recs:
+            for part, k in (r.get("failing") or {}).items():
+                counts[part] = counts.get(part, 0) + k
+        failed = sum(counts.values())
+        parts = ", ".join(f"`{p}` {k}" for p, k in sorted(counts.items(), key=lambda kv: -kv[1])[:3])
+        race = " / ".join(" ".join(f"{e['success']:.2f}" for e in r["race"]["designs"]) for r in recs if r.get("race"))
+        out.append(
+            f"- `{n}`: {failed} failed runs over {len(recs)} seeds broke {parts or 'nothing the monitor names'}; "
+            f"race success per design by seed ({', '.join(e['name'] for e in recs[0]['race']['designs'])}): {race}"
+            if recs and recs[0].get("race")
+            else f"- `{n}`: {failed} failed runs over {len(recs)} seeds broke {parts or 'nothing the monitor names'}"
+        )
+    if out:
+        out = ["", "Where it misses (under 0.9), measured:", "", *out]
+    return out
+
+
+README_BEGIN, README_END = "<!-- suite:begin -->", "<!-- suite:end -->"
+
+
+def readme_block(data: dict) -> str:
+    """README.md's lines on the suite, between its markers: each half's summary, from the page's data."""
+    present = set(data["tasks"])
+    parts = []
+    for half in ("tuning", "check"):
+        names = [n for n in data["halves"][half] if n in present]
+        if names:
+            s = summary(data, names)
+            parts.append(
+                f"the {half} half {s['mean']:.2f} mean success, "
+                f"{s['at_least_0.9']} of {s['tasks']} tasks at 0.9 or more"
+            )
+    return (
+        f"{README_BEGIN}\n"
+        f"At these defaults, {data['runs']} runs x {data['trials']} trials over seeds "
+        f"{', '.join(map(str, data['seeds']))}: {'; '.join(parts)} "
+        f"(`{data['command']}`; [docs/suite.md](docs/suite.md) has every task, and which miss and why).\n"
+        f"{README_END}\n"
+    )
+
+
 def render(data: dict) -> str:
     lines = [
         "# The task suite: specs nobody tuned for, trained at the defaults",
@@ -274,7 +335,9 @@ def render(data: dict) -> str:
         "evaluation start (what `mitlc train` prints), the mean over seeds with its 95 % interval;",
         f"**fresh**: the same policies from {FRESH} starts each drawn over the initial set; **trials",
         f"to {TARGET}**: the first tenth of the training at which the seeds' mean success (from fixed",
-        "starts) reaches it; **s**: a training's wall time; **witness**: starts its rollouts satisfy.",
+        "starts) reaches it; **s**: a training's wall time, the race included; **witness**: starts its",
+        "rollouts satisfy; **race won by**: the design `mitlc train`'s race chose, per seed",
+        "(docs/training.md, the race).",
         "",
         "| half | tasks | mean success | tasks >= 0.9 | tasks < 0.5 |",
         "| --- | ---: | ---: | ---: | --- |",
@@ -297,8 +360,8 @@ def render(data: dict) -> str:
             "",
             f"## The {half} half",
             "",
-            f"| task | plant | families | success | fresh | trials to {TARGET} | s | witness |",
-            "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |",
+            f"| task | plant | families | success | fresh | trials to {TARGET} | s | witness | race won by |",
+            "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |",
         ]
         for n in names:
             t = data["tasks"][n]
@@ -308,10 +371,11 @@ def render(data: dict) -> str:
             wall = float(np.mean([r["wall_s"] for r in recs]))
             lines.append(
                 f"| `{n}` | {t['plant']} | {fam} | {_pm([r['success'] for r in recs])} | "
-                f"{_pm([r['fresh'] for r in recs])} | {_trials_to(recs)} | {wall:.0f} | {ok}/{total} |"
+                f"{_pm([r['fresh'] for r in recs])} | {_trials_to(recs)} | {wall:.0f} | {ok}/{total} | {_won(recs)} |"
             )
         lines += ["", "What each task asks:", ""]
         lines += [f"- `{n}`: {data['tasks'][n]['description']}" for n in names]
+        lines += _misses(data, names)
     return "\n".join(lines) + "\n"
 
 
@@ -329,8 +393,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--render", action="store_true", help="write the page again from docs/suite.json")
     args = ap.parse_args(argv)
     if args.render:
-        atomic_write(PAGE, render(json.loads(DATA.read_text(encoding="utf-8"))))
-        print(f"wrote {PAGE}")
+        data = json.loads(DATA.read_text(encoding="utf-8"))
+        atomic_write(PAGE, render(data))
+        write_block(ROOT / "README.md", README_BEGIN, README_END, readme_block(data))
+        print(f"wrote {PAGE} and README.md's block")
         return 0
     data = run(args)
     page = render(data)
@@ -345,7 +411,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     atomic_write(DATA, json_text(data))
     atomic_write(PAGE, page)
-    print(f"wrote {PAGE} and {DATA}")
+    write_block(ROOT / "README.md", README_BEGIN, README_END, readme_block(data))
+    print(f"wrote {PAGE}, {DATA} and README.md's block")
     return 0
 
 

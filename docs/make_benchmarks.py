@@ -290,7 +290,7 @@ CART_CONTROLLERS = [
 
 def _cart_section(spec_file: str) -> list[str]:
     """What the compiled rewards pay fixed controllers of the cart, and whether the monitor accepts them."""
-    from mitlc.learn.sacpn import Sacpn, SacpnSettings
+    from mitlc.learn.sacpn import Sacpn
     from mitlc.monitor.offline import monitor
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.plants.user import load_plants
@@ -298,7 +298,7 @@ def _cart_section(spec_file: str) -> list[str]:
 
     load_plants(str(ROOT / CART_PLANT))
     spec = load_spec(ROOT / spec_file)
-    gamma = SacpnSettings().gamma
+    gamma = 0.0
 
     class Fixed(Sacpn):
         """SACPN's rollout with a fixed control law in place of the learned policy."""
@@ -314,6 +314,7 @@ def _cart_section(spec_file: str) -> list[str]:
         for name, law in CART_CONTROLLERS:
             agent = Fixed(rs, runs=10, seed=0)
             agent.law = law
+            gamma = agent.gamma  # SACPN's, from the trial's length
             ro = agent.rollout(agent.evaluation_states())
             disc = (ro.rewards * gamma ** np.arange(ro.rewards.shape[1])).sum(axis=1).mean()
             ok = monitor(spec, ro.states, ro.dt).satisfied.mean()

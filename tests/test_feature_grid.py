@@ -213,7 +213,9 @@ def test_the_spec_grid_by_hand_and_where_it_stays_the_plants():
     assert agent.features.bounds[1] == pytest.approx((-2.0, 2.0), abs=3e-3)
     plant = Sacpn(compile_spec(speed), SacpnSettings(trial_s=0.3, feature_grid="plant"), runs=1, seed=0)
     assert plant.features.bounds == ((-1.0, 1.0), (-5.0, 5.0))
-    given_ = Sacpn(compile_spec(speed), SacpnSettings(trial_s=0.3, feature_bounds=(("qdot", -3.0, 3.0),)), runs=1, seed=0)
+    given_ = Sacpn(
+        compile_spec(speed), SacpnSettings(trial_s=0.3, feature_bounds=(("qdot", -3.0, 3.0),)), runs=1, seed=0
+    )
     assert given_.features.bounds[1] == (-3.0, 3.0)
 
 

@@ -24,6 +24,8 @@ def test_page_is_rendered_from_its_data_at_the_defaults() -> None:
     data = json.loads((ROOT / "docs" / "suite.json").read_text(encoding="utf-8"))
     page = (ROOT / "docs" / "suite.md").read_text(encoding="utf-8")
     assert page == script.render(data), "python bench/suite.py --render writes it again"
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert script.readme_block(data) in readme, "README.md's suite block: python bench/suite.py --render"
     # made at the product's defaults: nothing changed, mitlc train's runs and trials, every task and seed
     assert data["sets"] == [] and data["options"] == {}
     assert data["runs"] == script.default_runs() and data["trials"] == script.default_trials()

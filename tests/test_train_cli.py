@@ -25,7 +25,12 @@ def test_train_writes_everything(short_spec, tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     assert np.array(m["returns"]).shape == (3, 4)
     assert 0.0 <= m["success_rate"] <= 1.0 and len(m["satisfied"]) == 3
-    assert m["wall_s"] > 0 and m["settings"]["gamma"] == 0.97
+    steps = round(1.0 / 0.03)  # short_spec: a 1 s trial at the pendulum's 0.03 s
+    assert m["wall_s"] > 0 and m["settings"]["gamma"] == 1 - 3 / steps
+    race = m["race"]  # 4 designs on the 3 runs, half the trials each; the winner's settings trained
+    assert (race["runs"], race["trials"], len(race["designs"])) == (3, 2, 4)
+    won = dict(part.split("=") for part in race["winner"].split())
+    assert {k: float(v) for k, v in won.items()} == {k: m["settings"][k] for k in ("sigma_frac", "rbf_width")}
     assert not list(out.glob(".*"))  # no temporary files left
 
 
@@ -49,7 +54,7 @@ def test_ctrl_c_writes_a_checkpoint_that_resumes(short_spec, tmp_path, monkeypat
     from mitlc.learn import sacpn
 
     whole, cut = tmp_path / "whole", tmp_path / "cut"
-    common = ("--spec", short_spec, "--runs", 2, "-q", "--no-plots")
+    common = ("--spec", short_spec, "--runs", 2, "-q", "--no-plots", "--no-race")
     assert run("train", *common, "--trials", 5, "--out", whole).exit_code == 0
     real = sacpn.Sacpn._trial
     calls = {"n": 0}
@@ -214,3 +219,49 @@ def test_bad_settings_are_one_line_errors_naming_the_option(short_spec, spec_dir
     assert res.exit_code == 2, res.output
     assert res.output.strip().startswith(message) and len(res.output.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_ctrl_c_during_the_race_saves_nothing_and_says_so(short_spec, tmp_path, monkeypatch):
+    from mitlc.learn import sacpn
+
+    real = sacpn.Sacpn._trial
+    calls = {"n": 0}
+
+    def interrupted(self):
+        calls["n"] += 1
+        if calls["n"] == 3:  # in the race's first design (2 trials each of the 4 designs, then the training)
+            raise KeyboardInterrupt
+        return real(self)
+
+    monkeypatch.setattr(sacpn.Sacpn, "_trial", interrupted)
+    out = tmp_path / "cut"
+    res = run("train", "--spec", short_spec, "--runs", 2, "--trials", 5, "-q", "--no-plots", "--out", out)
+    assert res.exit_code == 130
+    assert "interrupted during the race" in res.output and "nothing saved" in res.output
+    assert not (out / "params.npz").exists() and not (out / "metrics.json").exists()
+
+
+def test_settings_given_are_left_out_of_the_race(short_spec, tmp_path):
+    """--set sigma_frac=1 races the two widths only, and the training keeps the exploration given."""
+    from mitlc.sweep.race import designs
+
+    assert len(designs(set())) == 4 and len(designs({"sigma"})) == 2 and len(designs({"sigma_frac", "rbf_width"})) == 1
+    res = run(
+        "train",
+        "--spec",
+        short_spec,
+        "--runs",
+        2,
+        "--trials",
+        4,
+        "-q",
+        "--no-plots",
+        "--set",
+        "sigma_frac=1",
+        "--out",
+        tmp_path / "o",
+    )
+    assert res.exit_code == 0, res.output
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert [d["name"] for d in m["race"]["designs"]] == ["rbf_width=0.5", "rbf_width=1"]
+    assert m["settings"]["sigma_frac"] == 1.0

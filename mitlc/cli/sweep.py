@@ -44,6 +44,7 @@ def _list(spec) -> str:
         "sigma": ("sigma_frac x u_max", lambda: defaults.sigma_frac * spec.param("u_max")),
         "trial_s": ("the spec's horizon", lambda: spec.horizon if spec.horizon is not None else 3.0),
         "dt": ("the plant's dt", lambda: spec.param("dt")),
+        "gamma": ("1 - 3 / the trial's steps", lambda: _gamma(spec)),
     }
     if spec.plant is not None and spec.plant.inputs is not None:  # one sigma per input, none to show here
         meaning["sigma"] = ("sigma_frac x each input's half-range; one sigma per input", _no_value)
@@ -55,8 +56,17 @@ def _list(spec) -> str:
                 note = f" ({meaning[name][0]}: {format_value(meaning[name][1]())})"
             except KeyError:
                 note = f" ({meaning[name][0]})"
-        lines.append(f"  {name.ljust(width)}  {format_value(value)}{note}")
+        shown = "none" if value == () else format_value(value)
+        lines.append(f"  {name.ljust(width)}  {shown}{note}")
     return "\n".join(lines)
+
+
+def _gamma(spec) -> float:
+    """The discount SACPN takes by default on ``spec``: ``1 - 3 / N`` for its trial of N steps."""
+    from mitlc.limits import check_steps
+
+    horizon = spec.horizon if spec.horizon is not None else 3.0
+    return max(0.5, 1.0 - 3.0 / check_steps(horizon, spec.param("dt"), "a trial"))
 
 
 def _no_value() -> float:

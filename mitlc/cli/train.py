@@ -420,6 +420,7 @@ def train(
         outset = output_set(out, spec, continuing).open()  # before training: a folder that cannot be written fails now
         try:
             chosen = {a.split("=", 1)[0].strip() for a in assignments} | ({"sigma"} if sigma is not None else set())
+            stem = Path(spec.path or "spec").stem
             if preset == "default" and not no_race:
                 t0 = time.perf_counter()
                 result = race(
@@ -429,7 +430,11 @@ def train(
                     runs,
                     trials,
                     seed,
-                    None if quiet else lambda text: click.echo(text, err=True),
+                    None
+                    if quiet
+                    else lambda i, n, text: click.echo(
+                        f"{stem}: race {i + 1}/{n} ({100 * (i + 1) // n}%), {text}", err=True
+                    ),
                     given=chosen,
                 )
                 if result is not None:
@@ -438,6 +443,12 @@ def train(
                     if not quiet:
                         click.echo(result.line(), err=True)
             agent = build(settings, runs, seed)
+        except KeyboardInterrupt:
+            outset.close()
+            click.echo(
+                "interrupted during the race of exploration designs, before the training: nothing saved", err=True
+            )
+            sys.exit(130)
         except BaseException:
             outset.close()
             raise

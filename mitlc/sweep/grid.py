@@ -148,6 +148,8 @@ def format_value(v: Any) -> str:
     if isinstance(v, (int, float)):
         return A.fmt_number(float(v))
     if isinstance(v, (list, tuple)):
+        if not v:  # no entries (feature_bounds): parses back as none
+            return "none"
         if all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
             return "x".join(A.fmt_number(float(x)) for x in v)
         return "+".join(":".join(format_value(x) for x in b) for b in v)

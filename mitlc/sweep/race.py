@@ -26,7 +26,20 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DESIGNS", "RACE_RUNS", "RACE_SHARE", "Entry", "Race", "designs", "race", "race_seed"]
+from mitlc.errors import TrainingError
+
+__all__ = [
+    "DESIGNS",
+    "RACE_RUNS",
+    "RACE_SHARE",
+    "Entry",
+    "Race",
+    "designs",
+    "greedy_verdicts",
+    "race",
+    "race_seed",
+    "raced",
+]
 
 DESIGNS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("sigma_frac=0.3 rbf_width=0.5", {"sigma_frac": 0.3, "rbf_width": 0.5}),
@@ -117,7 +130,7 @@ def race(
     runs: int,
     trials: int,
     seed: int,
-    progress: Callable[[str], None] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
     given: set[str] | frozenset[str] = frozenset(),
 ) -> Race | None:
     """Race :data:`DESIGNS` (less the settings ``given``: :func:`designs`) on ``settings``, None when
@@ -131,10 +144,14 @@ def race(
         return None
     entries = []
     for i, (name, changes) in enumerate(todo):
-        if progress is not None:
-            progress(f"race: {name} ({r} runs x {t} trials)")
+        if progress is not None:  # design i of n starts
+            progress(i, len(todo), f"{name} ({r} runs x {t} trials)")
         agent = build(replace(settings, **changes), r, race_seed(seed, i))
-        agent.train(t)
+        try:
+            agent.train(t)
+        except TrainingError:  # every run of the design diverged: it loses (the training says so if it wins)
+            entries.append(Entry(name, 0.0, float("-inf")))
+            continue
         ok, returns = judge(agent)
         finite = np.asarray(returns, dtype=float)
         finite = finite[np.isfinite(finite)]
@@ -142,3 +159,27 @@ def race(
         entries.append(Entry(name, float(np.mean(np.asarray(ok, dtype=bool))), mean))
     best = max(range(len(entries)), key=lambda i: (entries[i].success, entries[i].mean_return, -i))
     return Race(todo[best][0], replace(settings, **todo[best][1]), tuple(entries), r, t)
+
+
+def greedy_verdicts(agent: Any) -> tuple[np.ndarray, np.ndarray]:
+    """A learner's final greedy policies from their evaluation starts: the monitor's verdicts on the
+    spec's monitor formula, and the rollouts' returns (the race's judge)."""
+    from mitlc.monitor.offline import monitor
+
+    spec = agent.spec
+    ro = agent.rollout(agent.evaluation_states())
+    return monitor(spec, ro.states, ro.dt, spec.monitor_formula).satisfied, ro.returns
+
+
+def raced(
+    build: Callable[[Any, int, int], Any],
+    settings: Any,
+    runs: int,
+    trials: int,
+    seed: int,
+    given: set[str] | frozenset[str] = frozenset(),
+) -> tuple[Any, Race | None]:
+    """The learner ``mitlc train`` would train with ``settings`` (the ones given by the user named in
+    ``given``): the race's winner's, built for ``runs`` runs and ``seed``, untrained; and the race."""
+    result = race(build, greedy_verdicts, settings, runs, trials, seed, given=given)
+    return build(result.settings if result is not None else settings, runs, seed), result
