@@ -241,3 +241,11 @@ def test_a_bad_plant_grid_is_refused():
         StateVar("v", -1.0, 1.0, grid=(2.0, 1.0))
     with pytest.raises(ValueError, match="grid must be two finite numbers"):
         StateVar("v", -1.0, 1.0, grid=(0.0, math.inf))
+
+
+def test_an_unknown_feature_grid_is_one_line_and_exit_2(tmp_path):
+    r = CliRunner().invoke(
+        main, ["train", "--plant", "pendulum", "--set", "feature_grid=box", "-q", "--out", str(tmp_path / "o")]
+    )
+    assert r.exit_code == 2 and r.output == "--set: error: unknown feature_grid 'box' (spec or plant)\n"
+    assert not (tmp_path / "o").exists()
