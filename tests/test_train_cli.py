@@ -36,7 +36,8 @@ def test_train_writes_everything(short_spec, tmp_path):
 
 def test_same_seed_same_returns_and_resume(short_spec, tmp_path):
     a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
-    common = ("--spec", short_spec, "--runs", 2, "--seed", 3, "-q", "--no-plots")
+    # --no-race: a race over 6 trials and one over 2 may choose different designs; a resumed run keeps its own
+    common = ("--spec", short_spec, "--runs", 2, "--seed", 3, "-q", "--no-plots", "--no-race")
     assert run("train", *common, "--trials", 6, "--out", a).exit_code == 0
     assert run("train", *common, "--trials", 6, "--out", b).exit_code == 0
     ra = json.loads((a / "metrics.json").read_text())["returns"]
