@@ -258,7 +258,7 @@ def _won(records: list[dict]) -> str:
     names = [r["race"]["winner"] for r in records if r.get("race")]
     if not names:
         return "-"
-    return ", ".join(f"{n} x{names.count(n)}" for n in sorted(set(names), key=lambda n: -names.count(n)))
+    return ", ".join(f"{n} x{names.count(n)}" for n in sorted(set(names), key=lambda n: (-names.count(n), n)))
 
 
 def _misses(data: dict, names: list[str]) -> list[str]:

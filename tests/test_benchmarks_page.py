@@ -44,7 +44,8 @@ def test_quick_benchmark_writes_page_figure_and_data(tmp_path) -> None:
 def test_cart_section_ranks_fixed_controllers() -> None:
     """The cart's section: both compiled rewards pay the braking controller, which the monitor accepts,
     more than standing still, and driving into the stop least; pushing left earns what standing still
-    earns under net (every step outside the goal pays -1 until F[0,2]'s window closes: 40 steps of -1)."""
+    earns under net (every step outside the goal pays -1 until F[0,2]'s window closes, 40 steps of -1, then
+    the failed part pays the goal's -1 less one for the trial's last 20 steps)."""
     import mitlc.plants.user as U
     from mitlc.plants import PLANTS
 
@@ -76,4 +77,4 @@ def test_cart_section_ranks_fixed_controllers() -> None:
     assert brake[4] == 1.0 and still[4] == left[4] == right[4] == 0.0
     for col in range(4):  # net and shaped, discounted and total
         assert brake[col] > still[col] >= left[col] > right[col]
-    assert still[1] == left[1] == -40.0  # net, total: 2 s of -1 per 0.05 s step, then 0
+    assert still[1] == left[1] == -40.0 - 2 * 20  # net, total: 2 s of -1 per 0.05 s step, then 1 s of -2

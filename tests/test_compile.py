@@ -269,7 +269,8 @@ def test_a_weight_inside_a_timed_part_scales_its_gated_reward():
     inner = compile_spec(parse_spec(head + "formula F[0,2] (2 * G a)\n"))
     assert (  # the gates stay outside
         str(inner.reward)
-        == "~p_open_G1 * (2 * (1 + ~p_a) * (p_a - p_not_a)) + (~p_open_F2 * ~p_idle_G1) * (2 * (p_a - p_not_a))"
+        == "~p_open_G1 * (2 * (1 + ~p_a) * (p_a - p_not_a)) + (~p_open_F2 * ~p_idle_G1) * (2 * (p_a - p_not_a)) "
+        "+ ~p_failed_F2 * (2 * (p_a - p_not_a) + (-1))"
     )
     assert _stepped(inner, qs) == [2 * r for r in plain] == [2.0, 4.0, -4.0, 2.0, 4.0, 4.0]
 
@@ -277,19 +278,21 @@ def test_a_weight_inside_a_timed_part_scales_its_gated_reward():
 def test_reach_and_stay_pulls_towards_the_goal_while_no_obligation_is_live():
     """``F[0,2] G a`` away from a: every G instance started is false at once (its sub-net idle), so
     G pays nothing; while the window is open the F part pays what a new instance needs now, a
-    (-1 a step outside a, as F a would), and after the window nothing (the part failed). By hand,
-    dt = 0.5: the window is open a step ago at t = 0, 0.5, 1, 1.5."""
+    (-1 a step outside a, as F a would), and once the window closed without it (the part failed)
+    a's reward less one: -2 outside a, 0 in it, never more than trying paid. By hand, dt = 0.5: the
+    window is open a step ago at t = 0, 0.5, 1, 1.5; the part fails at t = 2."""
     head = "plant pendulum(dt = 0.5)\nhorizon 3\nprop a = q > 1\n"
     rs = compile_spec(parse_spec(head + "formula F[0,2] G a\n"))
-    assert _stepped(rs, [0.0] * 7) == [-1.0, -1.0, -1.0, -1.0, 0.0, 0.0]  # never: -1 in the window
+    assert _stepped(rs, [0.0] * 7) == [-1.0, -1.0, -1.0, -1.0, -2.0, -2.0]  # never: -1 in the window, -2 after
     assert _stepped(rs, [0.0, 0.0, 0.0, 2.0, 2.0, 2.0, 2.0]) == [-1.0, -1.0, 1.0, 2.0, 2.0, 2.0]  # reached at 1.5
-    assert _stepped(rs, [0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 2.0]) == [-1.0, -1.0, -1.0, -1.0, 0.0, 0.0]  # too late
-    # in and out: +1 on entering (F's pull), -2 on leaving (G's (1 + ~a)(a - !a)), nothing once failed
-    assert _stepped(rs, [0.0, 2.0, 0.0, 2.0, 0.0, 2.0, 0.0]) == [1.0, -2.0, 1.0, -2.0, 0.0, 0.0]
+    assert _stepped(rs, [0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 2.0]) == [-1.0, -1.0, -1.0, -1.0, 0.0, 0.0]  # too late: 1 - 1
+    # in and out: +1 on entering (F's pull), -2 on leaving (G's (1 + ~a)(a - !a)), a's less one once failed
+    assert _stepped(rs, [0.0, 2.0, 0.0, 2.0, 0.0, 2.0, 0.0]) == [1.0, -2.0, 1.0, -2.0, 0.0, -2.0]
     # the graded reward pulls by the distance: nearer is better at every step of the window
     shaped = compile_spec(parse_spec(head + "option reward = shaped\nformula F[0,2] G a\n"))
     far, near = _stepped(shaped, [-1.0] * 7), _stepped(shaped, [0.5] * 7)
-    assert all(n > f for n, f in zip(near[:4], far[:4], strict=True)) and far[4:] == near[4:] == [0.0, 0.0]
+    assert all(n > f for n, f in zip(near, far, strict=True))
+    assert far[4:] == [far[0] - 1.0] * 2 and near[4:] == [near[0] - 1.0] * 2  # failed: the same pull, less one
 
 
 def test_recurrences_of_a_conjunction_form_one_cycle_in_order():

@@ -147,8 +147,12 @@ def test_a_training_logged_to_a_file_writes_20_plain_lines_and_no_frames(short_s
     data = err.read_bytes()
     assert b"\r" not in data
     lines = data.decode().splitlines()
-    progress = [line for line in lines if not line.startswith(COMPILING)]
-    assert len(lines) - len(progress) <= 1  # the compile line, where this session had not compiled it yet
+    race = [line for line in lines if ": race " in line or line.startswith("race (")]
+    progress = [line for line in lines if not line.startswith(COMPILING) and line not in race]
+    assert len(lines) - len(progress) - len(race) <= 1  # the compile line, where this session had not compiled it yet
+    # the race: a line as each of the 4 designs starts, then the result
+    assert [line.split(": race ")[1][:9] for line in race[:4]] == ["1/4 (25%)", "2/4 (50%)", "3/4 (75%)", "4/4 (100%"]
+    assert race[4].startswith("race (1 runs x 20 trials each, success by the monitor): ") and " won" in race[4]
     assert [int(LINE.match(line).group(1)) for line in progress] == list(range(2, 41, 2))
     assert all(", ETA " in line for line in progress)
     assert len(data) < 2500  # was 78 KB of frames for a 500-trial training

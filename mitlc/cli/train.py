@@ -422,21 +422,24 @@ def train(
             chosen = {a.split("=", 1)[0].strip() for a in assignments} | ({"sigma"} if sigma is not None else set())
             stem = Path(spec.path or "spec").stem
             if preset == "default" and not no_race:
+                from mitlc.cli.progress import compile_notice
+
                 t0 = time.perf_counter()
-                result = race(
-                    build,
-                    lambda a: _race_judge(spec, a),
-                    settings,
-                    runs,
-                    trials,
-                    seed,
-                    None
-                    if quiet
-                    else lambda i, n, text: click.echo(
-                        f"{stem}: race {i + 1}/{n} ({100 * (i + 1) // n}%), {text}", err=True
-                    ),
-                    given=chosen,
-                )
+                with compile_notice(quiet):  # the race's first design compiles the kernel
+                    result = race(
+                        build,
+                        lambda a: _race_judge(spec, a),
+                        settings,
+                        runs,
+                        trials,
+                        seed,
+                        None
+                        if quiet
+                        else lambda i, n, text: click.echo(
+                            f"{stem}: race {i + 1}/{n} ({100 * (i + 1) // n}%), {text}", err=True
+                        ),
+                        given=chosen,
+                    )
                 if result is not None:
                     settings, raced = result.settings, result.record()
                     wall_before = time.perf_counter() - t0
