@@ -421,6 +421,7 @@ def train(
         try:
             chosen = {a.split("=", 1)[0].strip() for a in assignments} | ({"sigma"} if sigma is not None else set())
             stem = Path(spec.path or "spec").stem
+            agent = build(settings, runs, seed)  # the full training's learner: what it refuses (its size) fails now
             if preset == "default" and not no_race:
                 from mitlc.cli.progress import compile_notice
 
@@ -445,7 +446,7 @@ def train(
                     wall_before = time.perf_counter() - t0
                     if not quiet:
                         click.echo(result.line(), err=True)
-            agent = build(settings, runs, seed)
+                    agent = build(settings, runs, seed)
         except KeyboardInterrupt:
             outset.close()
             click.echo(
