@@ -97,29 +97,25 @@ def _fresh_starts(agent, n: int, seed: int) -> np.ndarray:
 def train_task(job: tuple) -> dict:
     """One training of one task, as ``mitlc train`` builds it; the record the page reads."""
     name, spec_path, seed, runs, trials, sets, options = job
-    from mitlc.cli.train import _judge, _race_judge
-    from mitlc.learn.sacpn import Sacpn, SacpnSettings
+    from mitlc.cli.train import _judge
+    from mitlc.learn.sacpn import SacpnSettings
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec
-    from mitlc.sweep.race import race
+    from mitlc.sweep.race import greedy_verdicts, race
+    from mitlc.sweep.task import sacpn_learner
 
     spec = load_spec(spec_path)
     settings = SacpnSettings(**parse_assignments(SacpnSettings, list(sets)))
     compile_options = CompileOptions.from_spec(spec, **dict(options))
     rs = compile_spec(spec, compile_options)
 
-    def build(st: SacpnSettings, r: int, s: int) -> Sacpn:
-        a = Sacpn(rs, st, runs=r, seed=s)
-        if rs.paid_by_monitor:
-            from mitlc.monitor.rewards import pay
-
-            pay(a)
-        return a
+    def build(st: SacpnSettings, r: int, s: int):  # as mitlc train builds one
+        return sacpn_learner(rs, st, r, s)
 
     t0 = time.perf_counter()
     given = {a.split("=", 1)[0] for a in sets}
-    raced = race(build, lambda a: _race_judge(spec, a), settings, runs, trials, seed, given=given)  # as mitlc train
+    raced = race(build, greedy_verdicts, settings, runs, trials, seed, given=given)  # as mitlc train
     if raced is not None:
         settings = raced.settings
     race_s = time.perf_counter() - t0

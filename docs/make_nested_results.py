@@ -36,11 +36,12 @@ sys.path.insert(0, str(ROOT))
 from results_stats import interval, machine  # noqa: E402  (docs/, the script's own folder)
 
 from mitlc.fileio import atomic_write, write_block  # noqa: E402
-from mitlc.learn.sacpn import Sacpn, SacpnSettings  # noqa: E402
+from mitlc.learn.sacpn import SacpnSettings  # noqa: E402
 from mitlc.monitor.offline import monitor  # noqa: E402
 from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
 from mitlc.sweep.race import raced  # noqa: E402
+from mitlc.sweep.task import sacpn_learner  # noqa: E402
 
 COMMAND = "python docs/make_nested_results.py --jobs {jobs}"
 RUNS, SEEDS = 30, (0, 1, 2)
@@ -63,7 +64,7 @@ def train(job: tuple) -> dict:
     spec = load_spec(ROOT / "specs" / "pendulum" / spec_file)
     rs = compile_spec(spec, CompileOptions.from_spec(spec, clock=clock))
     start = time.perf_counter()  # the race included, as mitlc train counts it
-    agent, won = raced(lambda st, r, s: Sacpn(rs, st, runs=r, seed=s), SacpnSettings(), RUNS, trials, seed)
+    agent, won = raced(lambda st, r, s: sacpn_learner(rs, st, r, s), SacpnSettings(), RUNS, trials, seed)
     agent.train(trials)
     wall = time.perf_counter() - start
     ro = agent.rollout(agent.evaluation_states())

@@ -63,10 +63,11 @@ def _list(spec) -> str:
 
 def _gamma(spec) -> float:
     """The discount SACPN takes by default on ``spec``: ``1 - 3 / N`` for its trial of N steps."""
+    from mitlc.learn.sacpn.sacpn import default_gamma
     from mitlc.limits import check_steps
 
     horizon = spec.horizon if spec.horizon is not None else 3.0
-    return max(0.5, 1.0 - 3.0 / check_steps(horizon, spec.param("dt"), "a trial"))
+    return default_gamma(check_steps(horizon, spec.param("dt"), "a trial"))
 
 
 def _no_value() -> float:

@@ -149,12 +149,6 @@ def _judge(spec, ro):
         raise exc.located("the rollouts") from None
 
 
-def _race_judge(spec, agent) -> tuple[np.ndarray, np.ndarray]:
-    """A raced learner's final greedy policies from their evaluation starts: the monitor's verdicts and the returns."""
-    ro = agent.rollout(agent.evaluation_states())
-    return _judge(spec, ro).satisfied, ro.returns
-
-
 def _outputs(
     agent, spec, wall_s: float, interrupted: bool, plots: bool = True, raced: dict | None = None
 ) -> tuple[dict[str, bytes | str], dict]:
@@ -289,8 +283,8 @@ def _outputs(
 @click.option(
     "--no-race",
     is_flag=True,
-    help="Train with sigma_frac 0.3 straight away, without first racing the exploration designs "
-    "(mitlc docs training; the race is skipped too when --sigma or --set sigma/sigma_frac is given).",
+    help="Train sigma_frac 0.3 and rbf_width 0.5 straight away, without first racing the exploration designs "
+    "(mitlc docs training; --sigma, --set sigma_frac=... or --set rbf_width=... leave that setting out of the race).",
 )
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option(
@@ -335,10 +329,11 @@ def train(
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
     from mitlc.learn.checkpoint import check_against, recorded_spec
-    from mitlc.learn.sacpn import Sacpn, SacpnSettings, read_meta
+    from mitlc.learn.sacpn import SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
-    from mitlc.sweep.race import race
+    from mitlc.sweep.race import greedy_verdicts, race
+    from mitlc.sweep.task import sacpn_learner
 
     meta = None
     if resume_dir is not None:
@@ -400,12 +395,7 @@ def train(
         click.echo(w, err=True)
 
     def build(st, r: int, s: int):
-        a = Sacpn(rs, st, runs=r, seed=s)
-        if rs.paid_by_monitor:  # sparse, robustness, robustness-window
-            from mitlc.monitor.rewards import pay
-
-            pay(a)
-        return a
+        return sacpn_learner(rs, st, r, s)
 
     wall_before = 0.0
     raced: dict | None = None
@@ -429,7 +419,7 @@ def train(
                 with compile_notice(quiet):  # the race's first design compiles the kernel
                     result = race(
                         build,
-                        lambda a: _race_judge(spec, a),
+                        greedy_verdicts,
                         settings,
                         runs,
                         trials,
@@ -442,11 +432,12 @@ def train(
                         given=chosen,
                     )
                 if result is not None:
-                    settings, raced = result.settings, result.record()
+                    built, (settings, raced) = settings, (result.settings, result.record())
                     wall_before = time.perf_counter() - t0
                     if not quiet:
                         click.echo(result.line(), err=True)
-                    agent = build(settings, runs, seed)
+                    if settings != built:  # the winner is not the design the learner was built with
+                        agent = build(settings, runs, seed)
         except KeyboardInterrupt:
             outset.close()
             click.echo(

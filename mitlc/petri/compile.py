@@ -473,15 +473,8 @@ class _Builder(ViolationWatches):
                 sides = [head(core.left), head(core.right)]
                 if isinstance(core, A.Or) and None in sides:
                     return None
-                known = [h for h in sides if h is not None]
-                if not known:
-                    return None
-                h = (
-                    known[0]
-                    if len(known) == 1
-                    else (R.Min(tuple(known)) if isinstance(core, A.And) else R.Max(tuple(known)))
-                )
-                return R.scale(w, h)
+                h = _sides(core, sides)
+                return None if h is None else R.scale(w, h)
             interval = getattr(core, "interval", None)
             if interval is None or interval.lo > 0 or not interval.lo_closed:
                 return None
@@ -515,15 +508,8 @@ class _Builder(ViolationWatches):
             if is_state_formula(core):
                 return R.scale(w, self.reward(core, ctx, True))
             if isinstance(core, (A.And, A.Or)):
-                known = [h for h in (chase(core.left), chase(core.right)) if h is not None]
-                if not known:
-                    return None
-                h = (
-                    known[0]
-                    if len(known) == 1
-                    else (R.Min(tuple(known)) if isinstance(core, A.And) else R.Max(tuple(known)))
-                )
-                return R.scale(w, h)
+                h = _sides(core, [chase(core.left), chase(core.right)])
+                return None if h is None else R.scale(w, h)
             if isinstance(core, (A.Globally, A.Eventually)):
                 child = chase(core.child)
             elif isinstance(core, (A.Until, A.Release)):
@@ -692,6 +678,17 @@ def _unsatisfiable(spec: Spec, nf: A.Formula) -> list[str]:
                 "every trial violates it (option clock = trial reads intervals on the trial clock)"
             )
     return out
+
+
+def _sides(core: A.Formula, sides: list[R.RExpr | None]) -> R.RExpr | None:
+    """The reward of ``&`` (min) or ``|`` (max) over the sides that have one: the one side alone,
+    None when neither has."""
+    known = tuple(h for h in sides if h is not None)
+    if not known:
+        return None
+    if len(known) == 1:
+        return known[0]
+    return R.Min(known) if isinstance(core, A.And) else R.Max(known)
 
 
 def _weighted(w: float, e: R.RExpr) -> R.RExpr:

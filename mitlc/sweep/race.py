@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.errors import TrainingError
+from mitlc.errors import InputError, TrainingError
 
 __all__ = [
     "DESIGNS",
@@ -169,7 +169,11 @@ def greedy_verdicts(agent: Any) -> tuple[np.ndarray, np.ndarray]:
 
     spec = agent.spec
     ro = agent.rollout(agent.evaluation_states())
-    return monitor(spec, ro.states, ro.dt, spec.monitor_formula).satisfied, ro.returns
+    try:
+        verdicts = monitor(spec, ro.states, ro.dt, spec.monitor_formula).satisfied
+    except InputError as exc:  # the states the rollouts reached (a plant that blew up): say so, not "<spec>"
+        raise exc.located("the rollouts") from None
+    return verdicts, ro.returns
 
 
 def raced(

@@ -18,6 +18,20 @@ FINAL_TRIALS = 10
 # ---------------------------------------------------------------- one task
 
 
+def sacpn_learner(rs: Any, settings: Any, runs: int, seed: int) -> Any:
+    """A SACPN learner on the reward system ``rs``, with the monitor paying the rewards it pays
+    (``sparse``, ``robustness``, ``robustness-window``): how ``mitlc train``, a sweep's task and the
+    race build one."""
+    from mitlc.learn.sacpn import Sacpn
+
+    agent = Sacpn(rs, settings, runs=runs, seed=seed)
+    if rs.paid_by_monitor:
+        from mitlc.monitor.rewards import pay
+
+        pay(agent)
+    return agent
+
+
 def run_task(payload: Mapping[str, Any]) -> dict:
     """Train and judge one configuration and seed; a pure function of ``payload`` (bar the times and ``host``).
 
@@ -32,7 +46,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
     """
     import numpy as np
 
-    from mitlc.learn.sacpn import Sacpn, SacpnSettings
+    from mitlc.learn.sacpn import SacpnSettings
     from mitlc.monitor.offline import monitor
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.plants.gym_env import import_gym_module
@@ -46,13 +60,7 @@ def run_task(payload: Mapping[str, Any]) -> dict:
         load_plants(source)
     spec = with_weights(parse_spec(payload["spec_text"], payload.get("spec_path")), payload["weights"])
     rs = compile_spec(spec, CompileOptions(**payload["options"]))
-    agent = Sacpn(
-        rs, SacpnSettings.from_dict(payload["settings"]), runs=int(payload["runs"]), seed=int(payload["seed"])
-    )
-    if rs.paid_by_monitor:  # sparse, robustness, robustness-window
-        from mitlc.monitor.rewards import pay
-
-        pay(agent)
+    agent = sacpn_learner(rs, SacpnSettings.from_dict(payload["settings"]), int(payload["runs"]), int(payload["seed"]))
     record: dict[str, Any] = {
         "task": payload["key"],
         "seed": int(payload["seed"]),

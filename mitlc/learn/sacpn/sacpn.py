@@ -107,6 +107,12 @@ FORMER_DEFAULT_BOUNDS = (("qdot", -20.0, 20.0),)
 carry it (a checkpoint's) are taken for plants without a ``qdot`` too, which it did not touch."""
 
 
+def default_gamma(steps: int) -> float:
+    """SACPN's default discount for a trial of ``steps`` steps: ``1 - 3 / steps``, the effective
+    horizon ``1 / (1 - gamma)`` a third of the trial (0.97 at 100 steps), at least 0.5."""
+    return max(0.5, 1.0 - 3.0 / steps)
+
+
 LEGACY_SETTINGS = {"feature_grid": "plant"}
 """What settings written before these were named (a checkpoint's) were trained with."""
 
@@ -418,8 +424,8 @@ class Sacpn:
             self.n_steps = check_steps(self.trial_s, self.dt, "a trial")
         except ValueError as exc:
             raise TrainingError(str(exc), file=spec.path, hint="a shorter trial_s or horizon, a larger dt") from None
-        if settings.gamma is None:  # the effective horizon a third of the trial (at least 0.5)
-            settings = replace(settings, gamma=max(0.5, 1.0 - 3.0 / self.n_steps))
+        if settings.gamma is None:
+            settings = replace(settings, gamma=default_gamma(self.n_steps))
             self.settings = settings
         self.gamma: float = float(settings.gamma)  # type: ignore[arg-type]
         """The discount taken: ``settings.gamma``, or ``1 - 3 / N`` for a trial of ``N`` steps."""
