@@ -13,6 +13,8 @@
   module that skipped are written to PATH, one per line, at the end of the session. ``.ci/run``
   runs the README's test command first with only ``[test]`` installed, then installs the heavy
   extras and runs exactly those node ids again.
+* **Two processes.** pyproject's ``-n auto`` runs the tests in one pytest-xdist worker per core;
+  ``-n 0`` runs them in this process, as a debugger wants.
 """
 
 from __future__ import annotations
@@ -81,5 +83,7 @@ def pytest_collectreport(report: pytest.CollectReport) -> None:
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
     target = os.environ.get("MITLC_SKIPPED_FILE")
-    if target:
+    if target and not hasattr(
+        session.config, "workerinput"
+    ):  # under pytest-xdist: the controller, which hears every worker
         Path(target).write_text("".join(f"{n}\n" for n in _skipped), encoding="utf-8")

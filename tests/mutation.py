@@ -285,7 +285,18 @@ def run_tests(copy_root: Path, tests: list[str], timeout: float, log: list[str] 
     """``killed`` (a test failed), ``timeout`` (counted as killed) or ``survived``; ``log``
     gets the tests' output."""
     env = {**os.environ, "PYTHONPATH": str(copy_root), "OPENBLAS_NUM_THREADS": "1"}
-    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *[f"tests/{t}" for t in tests]]
+    cmd = [
+        sys.executable,
+        "-m",
+        "pytest",
+        "-x",
+        "-q",
+        "-p",
+        "no:cacheprovider",
+        "-n",
+        "0",
+        *[f"tests/{t}" for t in tests],
+    ]
     try:
         r = subprocess.run(cmd, cwd=copy_root, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
