@@ -215,9 +215,17 @@ def _outputs(
 @click.option(
     "--trials",
     type=click.IntRange(0, 10**7),
-    default=500,
+    default=None,
+    help="Trials per run (in total, counting trials done before --resume); default 500, and for --learner sac "
+    "about 20,000 samples per run.",
+)
+@click.option(
+    "--learner",
+    type=click.Choice(["sacpn", "sac"]),
+    default="sacpn",
     show_default=True,
-    help="Trials per run (in total, counting trials done before --resume).",
+    help="sac: Stable-Baselines3's SAC on the same reward, one network per run (needs the sb3 extra; "
+    "mitlc docs training), for tasks SACPN's grid cannot learn; --set takes SacSettings then.",
 )
 @click.option(
     "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True, help="Seed of all random numbers."
@@ -309,6 +317,7 @@ def train(
     spec_path,
     runs,
     trials,
+    learner,
     seed,
     out_dir,
     resume_dir,
@@ -336,6 +345,14 @@ def train(
     from mitlc.sweep.task import sacpn_learner
 
     meta = None
+    if learner == "sac":
+        stray = {"--resume": resume_dir, "--sigma": sigma, "--mask": mask, "--saturation": saturation}
+        stray.update({"--penalty-ramp": penalty_ramp, "--no-race": no_race or None})
+        stray["--preset"] = None if preset == "default" else preset
+        for option, value in stray.items():
+            if value is not None:
+                what = "SAC trainings keep no checkpoint" if option == "--resume" else "it is SACPN's"
+                raise InputError(f"{option} does not go with --learner sac: {what}", file=option)
     if resume_dir is not None:
         ckpt = Path(resume_dir) / PARAMS
         if not ckpt.is_file():
@@ -364,6 +381,11 @@ def train(
     for w in spec.warnings:
         click.echo(w, err=True)
     if spec.formula is None and spec.requirements:  # classical criteria: HyRL (docs/hyrl.md)
+        if learner == "sac":
+            raise InputError(
+                "a spec of 'require' criteria trains HyRL; --learner sac takes a formula", file="--learner"
+            )
+        trials = 500 if trials is None else trials
         from mitlc.cli.hybrid import train_hybrid_cli
         from mitlc.learn.hyrl import HyrlSettings
 
@@ -382,6 +404,13 @@ def train(
             resume=resume_dir,
         )
         return
+    if learner == "sac":
+        options = CompileOptions.from_spec(
+            spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward
+        )
+        _train_sac(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
+        return
+    trials = 500 if trials is None else trials
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
     settings = _checked(
         _settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
@@ -451,6 +480,110 @@ def train(
         _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced)
     finally:
         outset.close()
+
+
+def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> None:
+    """``mitlc train --learner sac``: :class:`mitlc.gym.sac.SacRuns` into an output set (the models,
+    metrics.json as SACPN's, the plots); Ctrl-C saves nothing (no checkpoint to resume)."""
+    from mitlc.cli.progress import Progress
+    from mitlc.learn.settings import parse_assignments
+
+    for w in rs.warnings:
+        click.echo(w, err=True)
+    try:
+        from mitlc.gym.sac import SacRuns, SacSettings, default_trials
+    except ImportError:  # no Gymnasium
+        raise InputError(
+            "--learner sac trains Stable-Baselines3's SAC through mitlc.gym: pip install 'mitlc[sb3]'",
+            file="--learner",
+        ) from None
+    settings = SacSettings(**parse_assignments(SacSettings, assignments))
+    try:
+        settings.check()
+    except TrainingError as exc:
+        raise InputError(exc.message, file="--set") from None
+    agent = SacRuns(rs, runs, seed, settings)
+    trials = default_trials(agent.n_steps) if trials is None else trials
+    stem = Path(spec.path or "spec").stem
+    outset = output_set(out, spec).open()
+    try:
+        bar = Progress(runs * trials, 0, desc=stem, quiet=quiet)
+        start = time.perf_counter()
+
+        def progress(done: int, total: int) -> None:
+            interrupt.check()
+            bar.update(f"run {min(done // max(trials, 1), runs - 1) + 1}/{runs}")
+
+        try:
+            interrupt.check()
+            agent.train(trials, progress)
+        except KeyboardInterrupt:
+            bar.close()
+            click.echo("interrupted: a SAC training keeps no checkpoint, nothing saved", err=True)
+            sys.exit(130)
+        bar.close()
+        wall = time.perf_counter() - start
+        files, metrics = _sac_outputs(agent, spec, wall, plots=not no_plots)
+        out = outset.write(files, trial=agent.trial, seed=seed, runs=runs, wall_s=round(wall, 3))
+    finally:
+        outset.close()
+    rate = metrics.get("success_rate")
+    click.echo(
+        f"{runs} SAC runs x {agent.trial} trials in {wall:.1f} s; "
+        f"final mean return {_mean(agent.returns[:, -10:]):.1f}; "
+        f"success rate {rate:.2f} (one evaluation start per run; monitor: {spec.monitor_formula}); results in {out}"
+        if rate is not None
+        else f"no trials run; results in {out}"
+    )
+
+
+def _sac_outputs(agent, spec, wall_s: float, plots: bool = True) -> tuple[dict[str, bytes | str], dict]:
+    """The output set of a SAC training, in memory (see :func:`_outputs`): a model per run
+    (``sac_RRR.zip``) and metrics.json with SACPN's keys where they mean the same."""
+    from mitlc.gym.sac import model_name
+    from mitlc.learn.plots import learning_curve, png_bytes
+
+    files: dict[str, bytes | str] = {model_name(r): agent.model_bytes(r) for r in range(agent.runs)}
+    metrics: dict = {
+        "learner": "sac",
+        "spec": spec.path,
+        "spec_source": spec.source or "",
+        "formula": str(spec.formula),
+        "check": str(spec.monitor_formula),
+        "conjunction": agent.rs.options.conjunction,
+        "violations": agent.rs.options.violations,
+        "clock": agent.rs.options.clock,
+        "reward": agent.rs.options.reward,
+        "runs": agent.runs,
+        "trials": agent.trial,
+        "seed": agent.seed,
+        "settings": agent.settings.to_dict(),
+        "gamma": agent.gamma,
+        "wall_s": round(wall_s, 3),
+        "run_steps": int(agent.runs * agent.trial * agent.n_steps),
+        "interrupted": False,
+        "diverged": [],
+        "returns": agent.returns.round(6),
+    }
+    if agent.trial > 0:
+        x0 = agent.evaluation_states()
+        ro = agent.rollout(x0)
+        res = _judge(spec, ro)
+        metrics.update(
+            evaluation_starts=x0.round(12),
+            success_rate=float(np.mean(res.satisfied)),
+            satisfied=[bool(v) for v in res.satisfied],
+            robustness=[float(v) for v in res.robustness],
+            greedy_returns=ro.returns.round(6),
+        )
+        if plots:
+            files["rollout.png"] = _rollout_png(
+                agent, ro, res.satisfied, f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"
+            )
+            fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} SAC runs")
+            files["learning_curve.png"] = png_bytes(fig)
+    files["metrics.json"] = json_text(metrics)
+    return files, metrics
 
 
 def _same_folder(a: Path, b: Path) -> bool:
@@ -675,6 +808,11 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
         return
     policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
+    if not ckpt.is_file() and _read_json(Path(policy_dir) / "metrics.json").get("learner") == "sac":
+        if len(policy_dirs) > 1:
+            raise InputError("only HyRL policies (classical criteria) run composed; give one policy", file="--policy")
+        _simulate_sac(policy_dir, spec_path, rollouts, seed, starts, plot_path, trace_path)
+        return
     if not ckpt.is_file():
         raise InputError(
             f"no {PARAMS} in {policy_dir} (train first with 'mitlc train --out DIR')", file=str(policy_dir)
@@ -813,6 +951,43 @@ def _write_traces(ro, names, trace_path, plant=None) -> None:
                 p.unlink(missing_ok=True)
         raise
     click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
+
+
+def _simulate_sac(folder, spec_path, rollouts, seed, starts, plot_path, trace_path) -> None:
+    """``simulate`` of a ``mitlc train --learner sac`` folder: its runs' models on the spec they were
+    trained on (:func:`mitlc.gym.load_policy`), judged and printed as a SACPN policy is."""
+    try:
+        from mitlc.gym import load_policy
+    except ImportError:  # no Gymnasium
+        raise InputError(
+            "a --learner sac training is loaded by Stable-Baselines3: pip install 'mitlc[sb3]'", file=str(folder)
+        ) from None
+    agent = getattr(load_policy(folder), "learner", None)
+    if agent is None:  # pragma: no cover - the caller saw metrics.json say sac; a folder changed since
+        raise InputError("not a --learner sac training", file=str(folder))
+    trained = agent.spec
+    spec = _load(spec_path) if spec_path is not None else trained
+    if starts == "train" and rollouts not in (None, agent.runs):
+        raise InputError(
+            f"--starts train judges each of the {agent.runs} runs from its own evaluation start: "
+            f"--rollouts must be {agent.runs} (or left out)",
+            file="--rollouts",
+        )
+    n = rollouts or agent.runs
+    x0 = agent.evaluation_states() if starts == "train" else _draw_starts(agent.init_ranges, n, seed)
+    ro = agent.rollout(x0)
+    res = _print_rollouts(spec, ro, x0, agent)
+    k = int(res.satisfied.sum())
+    where = (
+        "each run's evaluation start, as mitlc train judged"
+        + ("" if spec.source == trained.source else ", here by --spec")
+        if starts == "train"
+        else f"fresh starts drawn from the initial set, seed {seed}"
+    )
+    click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
+    _write_traces(ro, agent.plant.state_names, trace_path, agent.plant)
+    if plot_path is not None:
+        atomic_write(plot_path, _rollout_png(agent, ro, res.satisfied, f"{k}/{n} satisfy"), f"--plot {plot_path}")
 
 
 def _simulate_sb3(paths, spec_path, rollouts, seed, starts, plot_path, trace_path) -> None:

@@ -14,6 +14,8 @@ and ``info``. Both are a :class:`MitlNetEnv` (:mod:`~mitlc.gym.netenv`, the net 
 an episode): the interface :class:`mitlc.gym.crm.CounterfactualReplayBuffer` and
 :class:`Sb3Policy` (:mod:`~mitlc.gym.sb3`: a Stable-Baselines3 model trained on them as a
 :class:`mitlc.learn.policy.Policy`, for ``mitlc simulate --policy model.zip``) read.
+:class:`SacRuns` (:mod:`~mitlc.gym.sac`, ``mitlc train --learner sac``) trains Stable-Baselines3's SAC
+run by run on :class:`MitlPlantEnv`, and :func:`load_policy` loads such a folder as well as SACPN's and HyRL's.
 :mod:`~mitlc.gym.observation` reads the spec's state off an observation (``observe``,
 :func:`pendulum_v1_state`) and lays out the marking and clocks beside it.
 
@@ -30,6 +32,7 @@ except ImportError as exc:  # pragma: no cover - exercised in a subprocess by te
 from mitlc.gym.envs import ENV_IDS, MitlPlantEnv
 from mitlc.gym.netenv import VERDICT, MarkingCodes, MitlNetEnv
 from mitlc.gym.observation import MARKING_OBS, Observe, pendulum_v1_state, plant_observation
+from mitlc.gym.sac import SacRuns, SacSettings, load_policy
 from mitlc.gym.sb3 import SB3_EXTRA, Sb3Policy, load_sb3, sb3_algorithm
 from mitlc.gym.wrapper import MitlRewardWrapper
 
@@ -43,6 +46,9 @@ __all__ = [
     "plant_observation",
     "Sb3Policy",
     "load_sb3",
+    "SacRuns",
+    "SacSettings",
+    "load_policy",
     "sb3_algorithm",
     "SB3_EXTRA",
     "Observe",

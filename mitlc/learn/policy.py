@@ -151,6 +151,11 @@ def load_policy(directory: str | Path) -> Policy:
             "a Stable-Baselines3 model: mitlc.gym.load_sb3(path, spec) loads it as a Policy", file=str(directory)
         )
     ckpt = Path(directory) / PARAMS
+    if not ckpt.is_file() and (Path(directory) / "sac_000.zip").is_file():  # mitlc.gym, a later stage
+        raise InputError(
+            "a --learner sac training (Stable-Baselines3 models): mitlc.gym.load_policy(directory) loads it",
+            file=str(directory),
+        )
     if not ckpt.is_file():
         raise InputError(f"no {PARAMS} in {directory} (train first with 'mitlc train --out DIR')", file=str(directory))
     meta = read_meta(ckpt)
