@@ -96,7 +96,9 @@ def _fresh_starts(agent, n: int, seed: int) -> np.ndarray:
 
 def train_task(job: tuple) -> dict:
     """One training of one task, as ``mitlc train`` builds it; the record the page reads."""
-    name, spec_path, seed, runs, trials, sets, options = job
+    name, spec_path, seed, runs, trials, sets, options, *more = job
+    if more and more[0] == "sac":
+        return train_sac_task(job)
     from mitlc.cli.train import _judge
     from mitlc.learn.sacpn import SacpnSettings
     from mitlc.learn.settings import parse_assignments
@@ -159,6 +161,47 @@ def train_task(job: tuple) -> dict:
     }
 
 
+def train_sac_task(job: tuple) -> dict:
+    """One training of one task as ``mitlc train --learner sac`` trains it (SAC run by run, no race;
+    ``trials`` None: its default of about 20,000 samples per run); the record the page reads."""
+    name, spec_path, seed, runs, trials, sets, options, _ = job
+    from mitlc.cli.train import _draw_starts, _judge
+    from mitlc.gym.sac import SacRuns, SacSettings, default_trials
+    from mitlc.learn.settings import parse_assignments
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.spec.parse import load_spec
+
+    spec = load_spec(spec_path)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, **dict(options)))
+    agent = SacRuns(rs, runs, seed, SacSettings(**parse_assignments(SacSettings, list(sets))))
+    trials = trials or default_trials(agent.n_steps)
+    t0 = time.perf_counter()
+    agent.train(trials)
+    wall = time.perf_counter() - t0
+    judged = _judge(spec, agent.rollout(agent.evaluation_states()))
+    failing = [str(f) for f in judged.failing if f is not None]
+    fresh = _judge(spec, agent.rollout(_draw_starts(agent.init_ranges, FRESH * runs, seed + 31))).satisfied
+    return {
+        "job": f"{name} seed {seed}",
+        "task": name,
+        "seed": seed,
+        "runs": runs,
+        "trials": trials,
+        "learner": "sac",
+        "sets": list(sets),
+        "options": dict(options),
+        "kernel": False,
+        "success": float(np.mean(judged.satisfied)),
+        "fresh": float(np.mean(fresh)),
+        "curve": [],
+        "wall_s": round(wall, 2),
+        "diverged": 0,
+        "race": None,
+        "failing": {f: failing.count(f) for f in sorted(set(failing))},
+        "race_s": 0.0,
+    }
+
+
 def _change_key(sets: tuple[str, ...], options: tuple[tuple[str, str], ...], trials: int | None) -> str:
     text = json.dumps({"sets": sorted(sets), "options": sorted(options), "trials": trials})
     return hashlib.sha256(text.encode()).hexdigest()[:10]
@@ -180,9 +223,11 @@ def run(args: argparse.Namespace) -> dict:
     runs = args.runs or default_runs()
     trials = args.trials or default_trials()
     seeds = tuple(range(args.seeds)) if args.seeds else SEEDS
-    jobs = [(t.name, str(t.spec_path), s, runs, trials, sets, options) for t in chosen for s in seeds]
+    if args.learner == "sac":
+        trials = args.trials  # None: SAC's own default, per task (about 20,000 samples per run)
+    jobs = [(t.name, str(t.spec_path), s, runs, trials, sets, options, args.learner) for t in chosen for s in seeds]
     digest = code_digest(__file__)[:12]
-    key = _change_key(sets, options, args.trials)
+    key = _change_key(sets, options, args.trials) + ("-sac" if args.learner == "sac" else "")
     records, kept = run_cached(
         train_task,
         jobs,
@@ -201,6 +246,7 @@ def run(args: argparse.Namespace) -> dict:
         "code": digest,
         "runs": runs,
         "trials": trials,
+        "learner": args.learner,
         "seeds": list(seeds),
         "sets": list(sets),
         "options": dict(options),
@@ -384,6 +430,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--trials", type=int, help="trials per run (default: mitlc train's)")
     ap.add_argument("--set", action="append", default=[], help="a SACPN setting NAME=VALUE (repeat)")
     ap.add_argument("--option", action="append", default=[], help="a compile option NAME=VALUE (repeat)")
+    ap.add_argument(
+        "--learner", choices=("sacpn", "sac"), default="sacpn", help="sac: train as mitlc train --learner sac does"
+    )
     ap.add_argument("--jobs", type=int, default=2, help="trainings at once (default 2)")
     ap.add_argument("--results", type=Path, help="write the results here, not docs/suite.json and the page")
     ap.add_argument("--render", action="store_true", help="write the page again from docs/suite.json")
@@ -401,7 +450,16 @@ def main(argv: list[str] | None = None) -> int:
         print(page)
         print(f"wrote {args.results}")
         return 0
-    if args.task or args.half or args.set or args.option or args.trials or args.runs or args.seeds:
+    if (
+        args.task
+        or args.half
+        or args.set
+        or args.option
+        or args.trials
+        or args.runs
+        or args.seeds
+        or args.learner != "sacpn"
+    ):
         print(page)
         print("(a partial or changed run: docs/suite.md comes from the full default run only; --results keeps it)")
         return 0
