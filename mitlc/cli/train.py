@@ -149,6 +149,25 @@ def _judge(spec, ro):
         raise exc.located("the rollouts") from None
 
 
+def _judge_greedy(agent, spec, metrics: dict, files: dict, plots: bool) -> None:
+    """Each run's greedy rollout from its evaluation start (mitlc simulate --starts train) judged by the
+    monitor, into ``metrics`` (success_rate, satisfied, ...) and, with ``plots``, ``files``'s rollout.png."""
+    x0 = agent.evaluation_states()
+    ro = agent.rollout(x0)
+    res = _judge(spec, ro)
+    metrics.update(
+        evaluation_starts=x0.round(12),
+        success_rate=float(np.mean(res.satisfied)),
+        satisfied=[bool(v) for v in res.satisfied],
+        robustness=[float(v) for v in res.robustness],
+        greedy_returns=ro.returns.round(6),
+    )
+    if plots:
+        files["rollout.png"] = _rollout_png(
+            agent, ro, res.satisfied, f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"
+        )
+
+
 def _outputs(
     agent, spec, wall_s: float, interrupted: bool, plots: bool = True, raced: dict | None = None
 ) -> tuple[dict[str, bytes | str], dict]:
@@ -180,20 +199,7 @@ def _outputs(
     if raced is not None:
         metrics["race"] = raced
     if not interrupted and agent.trial > 0:
-        x0 = agent.evaluation_states()  # one per run, from its evaluation stream (mitlc simulate --starts train)
-        ro = agent.rollout(x0)
-        res = _judge(spec, ro)
-        metrics.update(
-            evaluation_starts=x0.round(12),
-            success_rate=float(np.mean(res.satisfied)),
-            satisfied=[bool(v) for v in res.satisfied],
-            robustness=[float(v) for v in res.robustness],
-            greedy_returns=ro.returns.round(6),
-        )
-        if plots:
-            files["rollout.png"] = _rollout_png(
-                agent, ro, res.satisfied, f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"
-            )
+        _judge_greedy(agent, spec, metrics, files, plots)
     if plots and agent.trial > 0:
         fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} runs")
         files["learning_curve.png"] = png_bytes(fig)
@@ -566,20 +572,8 @@ def _sac_outputs(agent, spec, wall_s: float, plots: bool = True) -> tuple[dict[s
         "returns": agent.returns.round(6),
     }
     if agent.trial > 0:
-        x0 = agent.evaluation_states()
-        ro = agent.rollout(x0)
-        res = _judge(spec, ro)
-        metrics.update(
-            evaluation_starts=x0.round(12),
-            success_rate=float(np.mean(res.satisfied)),
-            satisfied=[bool(v) for v in res.satisfied],
-            robustness=[float(v) for v in res.robustness],
-            greedy_returns=ro.returns.round(6),
-        )
+        _judge_greedy(agent, spec, metrics, files, plots)
         if plots:
-            files["rollout.png"] = _rollout_png(
-                agent, ro, res.satisfied, f"greedy rollouts, {int(res.satisfied.sum())}/{agent.runs} satisfy"
-            )
             fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} SAC runs")
             files["learning_curve.png"] = png_bytes(fig)
     files["metrics.json"] = json_text(metrics)
