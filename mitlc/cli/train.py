@@ -41,6 +41,8 @@ from mitlc.fileio import json_text
 __all__ = ["train", "simulate", "find_default_spec"]
 
 PARAMS = "params.npz"
+TRIALS = 500
+"""Trials per run when ``--trials`` is not given, for SACPN and HyRL (SAC counts samples instead)."""
 
 
 def find_default_spec(plant_name: str) -> Path:
@@ -222,7 +224,7 @@ def _outputs(
     "--trials",
     type=click.IntRange(0, 10**7),
     default=None,
-    help="Trials per run (in total, counting trials done before --resume); default 500, and for --learner sac "
+    help=f"Trials per run (in total, counting trials done before --resume); default {TRIALS}, and for --learner sac "
     "about 20,000 samples per run.",
 )
 @click.option(
@@ -391,7 +393,7 @@ def train(
             raise InputError(
                 "a spec of 'require' criteria trains HyRL; --learner sac takes a formula", file="--learner"
             )
-        trials = 500 if trials is None else trials
+        trials = TRIALS if trials is None else trials
         from mitlc.cli.hybrid import train_hybrid_cli
         from mitlc.learn.hyrl import HyrlSettings
 
@@ -416,7 +418,7 @@ def train(
         )
         _train_sac(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
         return
-    trials = 500 if trials is None else trials
+    trials = TRIALS if trials is None else trials
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
     settings = _checked(
         _settings_from_options(settings, **parse_assignments(SacpnSettings, assignments)),
