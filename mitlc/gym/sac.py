@@ -30,11 +30,10 @@ from typing import Any
 import numpy as np
 
 from mitlc.errors import InputError, TrainingError
-from mitlc.gym.sb3 import SB3_EXTRA, Sb3Policy
+from mitlc.gym.sb3 import SB3_EXTRA, Sb3Policy, plant_episode
 from mitlc.learn.policy import Policy
 from mitlc.learn.sacpn.sacpn import default_gamma
 from mitlc.petri.compile import RewardSystem
-from mitlc.plants.base import PLANTS
 
 __all__ = [
     "SacSettings",
@@ -127,26 +126,18 @@ class SacRuns:
 
     def __init__(self, rs: RewardSystem, runs: int, seed: int, settings: SacSettings | None = None) -> None:
         s = rs.spec
-        plant = s.plant
-        if plant is None or plant.stepped or s.plant_name not in PLANTS:
-            what = "names no plant" if plant is None else f"is for {s.plant_name}, a Gymnasium environment"
-            raise InputError(
-                f"--learner sac trains on mitlc's own plants, and the spec {what}: train SAC on the environment "
-                "through mitlc.gym.MitlRewardWrapper (docs/gymnasium.md)",
-                file=s.path,
-            )
-        if s.horizon is None:
-            raise InputError("the spec has no 'horizon': the episodes' length", file=s.path)
+        ep = plant_episode(
+            s,
+            "--learner sac trains on mitlc's own plants; train SAC on a Gymnasium environment through "
+            "mitlc.gym.MitlRewardWrapper (docs/gymnasium.md)",
+            "the episodes' length",
+        )
         self.settings = settings or SacSettings()
         self.settings.check()
         self.rs, self.spec, self.runs, self.seed = rs, s, int(runs), int(seed)
-        self.plant = PLANTS[s.plant_name]
-        self.params = self.plant.params(dict(s.plant_params))
-        self.dt = float(self.params["dt"])
-        self.n_steps = max(1, int(round(s.horizon / self.dt)))
+        self.plant, self.params, self.dt, self.n_steps = ep.plant, ep.params, ep.dt, ep.n_steps
         self.gamma = self.settings.gamma if self.settings.gamma is not None else default_gamma(self.n_steps)
-        init = {r.var: (r.lo, r.hi) for r in s.init}
-        self.init_ranges = [init.get(v, (0.0, 0.0)) for v in self.plant.state_names]
+        self.init_ranges = ep.init_ranges
         self.models: list[Any] = []
         self.returns = np.zeros((self.runs, 0))
         self.trial = 0

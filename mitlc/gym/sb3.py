@@ -12,6 +12,7 @@ import json
 import os
 import zipfile
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,9 +23,46 @@ from mitlc.gym.netenv import reward_system_of
 from mitlc.gym.observation import clock_high, n_clocks, plant_observation, token_bounds
 from mitlc.learn.policy import Policy
 from mitlc.petri.compile import RewardSystem
-from mitlc.plants.base import PLANTS, make_integrator
+from mitlc.plants.base import PLANTS, Plant, make_integrator
 from mitlc.runtime import NetRuntime
 from mitlc.spec.model import Spec
+
+
+@dataclass(frozen=True)
+class PlantEpisode:
+    """What an episode on one of mitlc's own plants needs from a spec (:func:`plant_episode`)."""
+
+    plant: Plant
+    params: dict[str, float]
+    dt: float
+    n_steps: int
+    """The horizon in steps of ``dt``."""
+    init_ranges: list[tuple[float, float]]
+    """The spec's ``init`` box, ``(lo, hi)`` per state variable (0 where it says nothing)."""
+
+
+def plant_episode(s: Spec, refusal: str, length: str) -> PlantEpisode:
+    """The plant, its parameters, step, horizon in steps and ``init`` box of a spec on one of mitlc's
+    plants, which SB3 models train and roll out on; a spec that names no plant or a Gymnasium
+    environment is refused with ``refusal`` (``{plants}``: the plants' names), one with no horizon
+    says it is ``length``."""
+    plant = s.plant
+    if plant is None or plant.stepped or s.plant_name not in PLANTS:
+        what = "names no plant" if plant is None else f"is for plant {s.plant_name}, a Gymnasium environment"
+        raise InputError(f"the spec {what}: " + refusal.format(plants=", ".join(sorted(PLANTS))), file=s.path)
+    if s.horizon is None:
+        raise InputError(f"the spec has no 'horizon': {length}", file=s.path)
+    own = PLANTS[s.plant_name]
+    params = own.params(dict(s.plant_params))
+    dt = float(params["dt"])
+    init = {r.var: (r.lo, r.hi) for r in s.init}
+    return PlantEpisode(
+        plant=own,
+        params=params,
+        dt=dt,
+        n_steps=max(1, int(round(s.horizon / dt))),
+        init_ranges=[init.get(v, (0.0, 0.0)) for v in own.state_names],
+    )
 
 
 class Sb3Policy(Policy):
@@ -50,26 +88,17 @@ class Sb3Policy(Policy):
     ) -> None:
         rs = reward_system_of(spec)
         s = rs.spec
-        plant = s.plant
-        if plant is None or plant.stepped or s.plant_name not in PLANTS:
-            what = "names no plant" if plant is None else f"is for plant {s.plant_name}, a Gymnasium environment"
-            raise InputError(
-                f"the spec {what}: an SB3 model is rolled out on one of mitlc's plants "
-                f"({', '.join(sorted(PLANTS))}); judge it on a Gymnasium environment with MitlRewardWrapper's "
-                "info['verdict']",
-                file=s.path,
-            )
-        if s.horizon is None:
-            raise InputError("the spec has no 'horizon': the rollouts' length", file=s.path)
+        ep = plant_episode(
+            s,
+            "an SB3 model is rolled out on one of mitlc's plants ({plants}); judge it on a Gymnasium environment "
+            "with MitlRewardWrapper's info['verdict']",
+            "the rollouts' length",
+        )
         self.model, self.reward_system, self.spec, self.runs = model, rs, s, 1
-        self.plant = PLANTS[s.plant_name]
-        self.params = self.plant.params(dict(s.plant_params))
-        self.dt = float(self.params["dt"])
+        self.plant, self.params, self.dt, self.n_steps = ep.plant, ep.params, ep.dt, ep.n_steps
         self.u_lo, self.u_hi = self.plant.input_box(self.params)
         self.u_max = float(self.params["u_max"]) if "u_max" in self.params else None
-        self.n_steps = max(1, int(round(s.horizon / self.dt)))
-        init = {r.var: (r.lo, r.hi) for r in s.init}
-        self.init_ranges = [init.get(v, (0.0, 0.0)) for v in self.plant.state_names]
+        self.init_ranges = ep.init_ranges
         """The spec's ``init`` box, ``(lo, hi)`` per state variable (0 where it says nothing)."""
         self.runtime = NetRuntime(rs, self.plant.state_names, dt=self.dt, steps=self.n_steps)
         self.place_names = rs.net.place_names
