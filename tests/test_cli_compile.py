@@ -38,6 +38,21 @@ def test_json_keys() -> None:
     assert len(d["D"]) == 6 and len(d["D"][0]) == 3
 
 
+def test_json_matrices_dense_or_arcs_only() -> None:
+    """P2's net: t1 takes p_kappa (place 0) and puts p_psi (place 1); arcs only leaves the matrices out."""
+    from mitlc.petri.export import DENSE_ENTRIES
+
+    dense = json.loads(run("compile", P2, "--format", "json").output)
+    assert dense["arcs"]["pre"][0] == [0, 0, 1] and dense["arcs"]["post"][0] == [0, 1, 1]
+    assert len(dense["arcs"]["pre"]) == len(dense["arcs"]["post"]) == 6
+    arcs = json.loads(run("compile", P2, "--format", "json", "--matrices", "arcs").output)
+    assert not {"D_minus", "D_plus", "D"} & set(arcs) and arcs["arcs"] == dense["arcs"]
+    assert json.loads(run("compile", P2, "--format", "json", "--matrices", "dense").output) == dense
+    r = run("compile", P2, "--matrices", "dense")
+    assert r.exit_code == 2 and r.output.strip() == "--matrices: error: --matrices applies to --format json, not text"
+    assert f"{DENSE_ENTRIES:,} entries" in run("compile", "--help").output
+
+
 def test_dot_has_clusters() -> None:
     r = run("compile", P2, "--format", "dot")
     assert r.exit_code == 0 and "subgraph cluster_0" in r.output

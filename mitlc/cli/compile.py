@@ -8,6 +8,7 @@ from collections.abc import Callable
 import click
 
 from mitlc.cli.common import compile_options, handle_errors, output_option, plant_file_option, write_result
+from mitlc.errors import InputError
 
 __all__ = ["compile_cmd", "FORMATS"]
 
@@ -24,6 +25,13 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
     show_default=True,
     help="What to write: a readable summary, JSON, Graphviz DOT, a rendered picture, or PNML.",
 )
+@click.option(
+    "--matrices",
+    type=click.Choice(["auto", "dense", "arcs"]),
+    default=None,
+    help="With --format json: the incidence as arcs only, or the dense D-, D+ and D matrices too "
+    "(default auto: dense up to 50,000 entries each, transitions x places).",
+)
 @output_option
 @compile_options
 @plant_file_option
@@ -31,6 +39,7 @@ FORMATS = ("text", "json", "dot", "svg", "png", "pnml")
 def compile_cmd(
     spec: str,
     fmt: str,
+    matrices: str | None,
     output: str | None,
     conjunction: str | None,
     violations: str | None,
@@ -45,6 +54,8 @@ def compile_cmd(
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec
 
+    if matrices is not None and fmt != "json":
+        raise InputError(f"--matrices applies to --format json, not {fmt}", file="--matrices")
     s = load_spec(spec)
     for w in s.warnings:
         click.echo(w, err=True)
@@ -56,7 +67,7 @@ def compile_cmd(
 
     makers: dict[str, Callable[[], str | bytes]] = {
         "text": lambda: export.to_text(rs),
-        "json": lambda: export.to_json(rs),
+        "json": lambda: export.to_json(rs, matrices or "auto"),
         "dot": lambda: to_digraph(rs).source,
         "pnml": lambda: export.to_pnml(rs),
         "svg": lambda: render_bytes(rs, "svg"),

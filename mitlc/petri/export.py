@@ -6,8 +6,8 @@ All functions are pure: they return strings or objects and write nothing.
 >>> from mitlc.petri.compile import compile_spec
 >>> rs = compile_spec(parse_spec("prop a = x < 1\\nformula G a"))
 >>> import json; d = json.loads(to_json(rs))
->>> [p["name"] for p in d["places"]], d["D"]
-(['p_a', 'p_not_a'], [[-1, 1], [1, -1]])
+>>> [p["name"] for p in d["places"]], d["D"], d["arcs"]["pre"]
+(['p_a', 'p_not_a'], [[-1, 1], [1, -1]], [[0, 0, 1], [1, 1, 1]])
 >>> g = to_networkx(rs); sorted(g.nodes)
 ['p_a', 'p_not_a', 't1', 't2']
 """
@@ -27,12 +27,32 @@ from mitlc.petri import reward as R
 from mitlc.petri.compile import RewardSystem
 from mitlc.spec import ast as A
 
-__all__ = ["to_dict", "to_json", "to_text", "to_pnml", "to_networkx", "reward_tree", "PNML_NS", "PTNET_TYPE"]
+__all__ = [
+    "MATRICES",
+    "DENSE_ENTRIES",
+    "dense_wanted",
+    "to_dict",
+    "to_json",
+    "to_text",
+    "to_pnml",
+    "to_networkx",
+    "reward_tree",
+    "PNML_NS",
+    "PTNET_TYPE",
+]
 
 TEXT_TABLE_PLACES = 64
 """The text summary prints ``D`` as a table up to this many places (columns) ..."""
 TEXT_TABLE_ENTRIES = 50_000
 """... and this many entries (transitions x places); past either, it says the size instead (the arcs are listed)."""
+
+DENSE_ENTRIES = 50_000
+"""JSON carries the dense matrices ``D_minus``, ``D_plus`` and ``D`` by default up to this many entries
+(transitions x places) each; past it only the arcs, which stay linear in the net's size."""
+
+MATRICES = ("auto", "dense", "arcs")
+"""How JSON writes the incidence: ``arcs`` only, ``dense`` matrices too, or ``auto`` (dense up to
+:data:`DENSE_ENTRIES`)."""
 
 PNML_NS = "http://www.pnml.org/version-2009/grammar/pnml"
 PTNET_TYPE = "http://www.pnml.org/version-2009/grammar/ptnet"
@@ -56,20 +76,52 @@ def reward_tree(e: R.RExpr) -> dict[str, Any]:
     return {"op": name, "args": [reward_tree(c) for c in e.children]}
 
 
-def to_dict(rs: RewardSystem) -> dict[str, Any]:
-    """Everything about the compiled net as plain JSON-able data (docs/net.schema.json)."""
-    d = _dict(rs)
+def to_dict(rs: RewardSystem, matrices: str = "auto") -> dict[str, Any]:
+    """Everything about the compiled net as plain JSON-able data (docs/net.schema.json).
+
+    ``arcs`` always holds ``D-`` and ``D+`` as ``[transition, place, weight]`` triples (indices
+    into ``transitions`` and ``places``); the dense ``D_minus``, ``D_plus`` and ``D`` are there too
+    when :func:`dense_wanted` says so (``matrices``: one of :data:`MATRICES`).
+    """
+    d = _dict(rs, matrices)
+    d["arcs"] = {"pre": _triples(rs.net.pre), "post": _triples(rs.net.post)}
     for name in _MATRICES:
-        d[name] = getattr(rs.net, name).tolist()
+        if name in d:
+            d[name] = getattr(rs.net, name).tolist()
     return d
+
+
+def dense_wanted(rs: RewardSystem, matrices: str = "auto") -> bool:
+    """Whether JSON carries the dense matrices: ``dense``, or ``auto`` on a net of at most
+    :data:`DENSE_ENTRIES` entries (transitions x places).
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> from mitlc.petri.compile import compile_spec
+    >>> rs = compile_spec(parse_spec("prop a = x < 1\\nformula G a"))
+    >>> [dense_wanted(rs, m) for m in MATRICES]
+    [True, True, False]
+    """
+    if matrices not in MATRICES:
+        raise ValueError(f"matrices must be one of {', '.join(MATRICES)}, not {matrices!r}")
+    if matrices != "auto":
+        return matrices == "dense"
+    T, P = rs.net.pre.shape
+    return T * P <= DENSE_ENTRIES
+
+
+def _triples(inc: Any) -> list[list[int]]:
+    rows = np.repeat(np.arange(inc.shape[0]), np.diff(inc.indptr))
+    return np.stack([rows, inc.indices, inc.data], axis=1).astype(int).tolist()
 
 
 _MATRICES = ("D_minus", "D_plus", "D")
 
 
-def _dict(rs: RewardSystem) -> dict[str, Any]:
-    """:func:`to_dict` with each dense matrix a placeholder: :func:`to_json` writes them itself."""
+def _dict(rs: RewardSystem, matrices: str) -> dict[str, Any]:
+    """:func:`to_dict` with the arcs and each dense matrix (if wanted) a placeholder: :func:`to_json`
+    writes them itself."""
     net = rs.net
+    dense = dense_wanted(rs, matrices)
     return {
         "spec": rs.spec.path,
         "formula": str(rs.spec.formula),
@@ -106,7 +158,8 @@ def _dict(rs: RewardSystem) -> dict[str, Any]:
             }
             for s in net.subnets
         ],
-        **{name: _placeholder(name) for name in _MATRICES},
+        "arcs": _placeholder("arcs"),
+        **({name: _placeholder(name) for name in _MATRICES} if dense else {}),
         "M0": net.M0.tolist(),
         "reward": str(rs.reward),
         "reward_tree": reward_tree(rs.reward),
@@ -135,25 +188,49 @@ def _interval_text(i: A.Interval) -> str:
     return f"{lo}{A.fmt_number(i.lo)},{'inf' if math.isinf(i.hi) else A.fmt_number(i.hi)}{hi}"
 
 
-def to_json(rs: RewardSystem) -> str:
+def to_json(rs: RewardSystem, matrices: str = "auto") -> str:
     """The net as strict JSON (docs/net.schema.json); a non-finite number would be null.
 
-    The text is ``json.dumps(to_dict(rs), indent=2)``'s, byte for byte, but the dense
-    matrices (transitions x places each, the bulk of a big net's JSON) are written by
-    :func:`_matrix_json`, not walked number by number by the JSON encoder.
+    The data is :func:`to_dict`'s, indented by two, but the arcs (one triple per line) and the
+    dense matrices (one entry per line, as ``json.dumps(indent=2)`` writes them) are written by
+    :func:`_arcs_json` and :func:`_matrix_json`, not walked number by number by the JSON encoder.
 
     >>> from mitlc.spec.parse import parse_spec
     >>> from mitlc.petri.compile import compile_spec
     >>> rs = compile_spec(parse_spec("prop a = x < 1\\nformula F[0,1] a & G a"))
-    >>> to_json(rs) == json_text(to_dict(rs), indent=2, ensure_ascii=False)
+    >>> all(json.loads(to_json(rs, m)) == to_dict(rs, m) for m in MATRICES)
     True
+    >>> to_json(rs).replace(_matrix_json(rs.net.D, "  "), "") == to_json(rs)
+    False
     """
-    text = json_text(_dict(rs), indent=2, ensure_ascii=False)
-    for name in _MATRICES:
+    data = _dict(rs, matrices)
+    text = json_text(data, indent=2, ensure_ascii=False)
+    pieces = {"arcs": _arcs_json(rs.net.pre, rs.net.post, "  ")}
+    pieces.update({name: _matrix_json(getattr(rs.net, name), "  ") for name in _MATRICES if name in data})
+    for name, piece in pieces.items():
         token = json.dumps(_placeholder(name))
         assert text.count(token) == 1
-        text = text.replace(token, _matrix_json(getattr(rs.net, name), "  "))
+        text = text.replace(token, piece)
     return text
+
+
+def _arcs_json(pre: Any, post: Any, indent: str) -> str:
+    """``{"pre": ..., "post": ...}`` with one ``[transition, place, weight]`` triple per line.
+
+    >>> from mitlc.petri.net import Incidence
+    >>> a = Incidence.from_dense(np.array([[1, 0], [0, 1]]))
+    >>> json.loads(_arcs_json(a, Incidence.from_dense(np.zeros((2, 2), int)), ""))
+    {'pre': [[0, 0, 1], [1, 1, 1]], 'post': []}
+    """
+    inner, cell = indent + "  ", indent + "    "
+
+    def listed(inc: Any) -> str:
+        triples = _triples(inc)
+        if not triples:
+            return "[]"
+        return "[\n" + ",\n".join(f"{cell}[{t}, {p}, {w}]" for t, p, w in triples) + "\n" + inner + "]"
+
+    return "{\n" + f'{inner}"pre": {listed(pre)},\n{inner}"post": {listed(post)}\n' + indent + "}"
 
 
 def _placeholder(name: str) -> str:
@@ -222,7 +299,7 @@ def to_text(rs: RewardSystem) -> str:
     if T and (P > TEXT_TABLE_PLACES or T * P > TEXT_TABLE_ENTRIES):  # a table nobody reads, quadratic in size
         out.append(
             f"  {T:,} x {P:,}, too big for a table: each transition's row is its arcs above "
-            f"({net.pre.nnz + net.post.nnz:,} arcs; --format json has the matrices)"
+            f"({net.pre.nnz + net.post.nnz:,} arcs; --format json --matrices dense has the matrices)"
         )
     elif net.transitions:
         widths = [len(p.name) for p in net.places]
