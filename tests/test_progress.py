@@ -150,9 +150,10 @@ def test_a_training_logged_to_a_file_writes_20_plain_lines_and_no_frames(short_s
     race = [line for line in lines if ": race " in line or line.startswith("race (")]
     progress = [line for line in lines if not line.startswith(COMPILING) and line not in race]
     assert len(lines) - len(progress) - len(race) <= 1  # the compile line, where this session had not compiled it yet
-    # the race: a line as each of the 4 designs starts, then the result
-    assert [line.split(": race ")[1][:9] for line in race[:4]] == ["1/4 (25%)", "2/4 (50%)", "3/4 (75%)", "4/4 (100%"]
-    assert race[4].startswith("race (1 runs x 20 trials each, success by the monitor): ") and " won" in race[4]
+    # the race: a line as each of the 5 designs starts, then the result
+    starts = ["1/5 (20%)", "2/5 (40%)", "3/5 (60%)", "4/5 (80%)", "5/5 (100%"]
+    assert [line.split(": race ")[1][:9] for line in race[:5]] == starts
+    assert race[5].startswith("race (1 runs x 20 trials each, success by the monitor): ") and " won" in race[5]
     assert [int(LINE.match(line).group(1)) for line in progress] == list(range(2, 41, 2))
     assert all(", ETA " in line for line in progress)
     assert len(data) < 2500  # was 78 KB of frames for a 500-trial training

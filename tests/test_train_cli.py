@@ -27,8 +27,8 @@ def test_train_writes_everything(short_spec, tmp_path):
     assert 0.0 <= m["success_rate"] <= 1.0 and len(m["satisfied"]) == 3
     steps = round(1.0 / 0.03)  # short_spec: a 1 s trial at the pendulum's 0.03 s
     assert m["wall_s"] > 0 and m["settings"]["gamma"] == 1 - 3 / steps
-    race = m["race"]  # 4 designs, half the trials each; the winner's settings trained
-    assert (race["runs"], race["trials"], len(race["designs"])) == (1, 2, 4)  # a quarter of the runs, rounded up
+    race = m["race"]  # 5 designs, half the trials each; the winner's settings trained
+    assert (race["runs"], race["trials"], len(race["designs"])) == (1, 2, 5)  # a quarter of the runs, rounded up
     won = dict(part.split("=") for part in race["winner"].split())
     assert {k: float(v) for k, v in won.items()} == {k: m["settings"][k] for k in ("sigma_frac", "rbf_width")}
     assert not list(out.glob(".*"))  # no temporary files left
@@ -246,7 +246,8 @@ def test_settings_given_are_left_out_of_the_race(short_spec, tmp_path):
     """--set sigma_frac=1 races the two widths only, and the training keeps the exploration given."""
     from mitlc.sweep.race import designs
 
-    assert len(designs(set())) == 4 and len(designs({"sigma"})) == 2 and len(designs({"sigma_frac", "rbf_width"})) == 1
+    assert len(designs(set())) == 5 and len(designs({"sigma"})) == 2 and len(designs({"rbf_width"})) == 3
+    assert len(designs({"sigma_frac", "rbf_width"})) == 1
     res = run(
         "train",
         "--spec",
