@@ -275,6 +275,22 @@ def test_a_weight_inside_a_timed_part_scales_its_gated_reward():
     assert _stepped(inner, qs) == [2 * r for r in plain] == [2.0, 4.0, -4.0, 2.0, 4.0, 4.0]
 
 
+def test_a_sequence_pays_the_next_step_once_its_first_is_done():
+    """``F[0,2] (a & F[0,2] G b)``, a and b disjoint: once an instance of ``F[0,2] G b`` is live (it
+    started where a held), the reward is that instance's alone, so leaving a for b pays. The literal
+    ``min(r_a, ...)`` paid -1 on every step away from a, b included, and learners stayed at a. By
+    hand, dt = 0.5: a at t = 0.5, then b from t = 1.5: -1 (the first step sees the reset's open
+    tokens: r_b, -1 at a), -1 (away from both), +1 (b, G's instance not yet open), then
+    ``(1 + ~b) * r_b`` = 2."""
+    head = "plant pendulum(dt = 0.5)\nhorizon 4\nprop a = q > 1\nprop b = q < -1\n"
+    rs = compile_spec(parse_spec(head + "formula F[0,2] (a & F[0,2] G b)\n"))
+    assert str(rs.reward).startswith("~p_idle_F2 * min(p_a - (p_b + p_none_a_b), ")
+    assert _stepped(rs, [0.0, 2.0, 0.0, -2.0, -2.0, -2.0, -2.0, -2.0, -2.0]) == [-1.0, -1.0, 1.0] + [2.0] * 5
+    assert _stepped(rs, [0.0] + [2.0] * 8) == [-1.0] * 8  # staying at a pays nothing
+    # never a: -1 while the window is open, then a failed part's min(r_a, r_b) - 1 on top
+    assert _stepped(rs, [0.0] * 9) == [-1.0] * 4 + [-3.0] * 4
+
+
 def test_reach_and_stay_pulls_towards_the_goal_while_no_obligation_is_live():
     """``F[0,2] G a`` away from a: every G instance started is false at once (its sub-net idle), so
     G pays nothing; while the window is open the F part pays what a new instance needs now, a

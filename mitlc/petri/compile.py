@@ -445,7 +445,9 @@ class _Builder(ViolationWatches):
                 return self.reward(core, ctx, True)
             if node.op in ("and", "or"):
                 terms = (rew(core.left), rew(core.right))  # type: ignore[attr-defined]
-                return R.Min(terms, active=active) if node.op == "and" else R.Max(terms)
+                if node.op == "and":
+                    return started(i, core, terms) or R.Min(terms, active=active)
+                return R.Max(terms)
             if isinstance(core, A.Eventually):
                 if is_state_formula(core.child):
                     return gate(i, "open", self.reward(core.child, ctx, True))
@@ -462,9 +464,28 @@ class _Builder(ViolationWatches):
                 return rew(core.right)
             raise CompileError(f"cannot compile {type(core).__name__} in a timed obligation")
 
+        def started(i: int, core: A.Formula, terms: tuple[R.RExpr, R.RExpr]) -> R.RExpr | None:
+            """``s & T`` with ``s`` a state formula and ``T`` temporal: ``s`` is needed at the sample an
+            instance starts only, and ``T`` has a live instance only where one started with ``s``
+            true (a false conjunct decides the ``&`` at once). So while ``T``'s sub-net holds a live
+            instance the reward is ``T``'s alone, and ``s`` pays only while none does: a learner that
+            reached ``s`` is not paid to stay there when ``T`` asks it to leave (``F[0,2] (mark &
+            F[0,2] G home)``). None for other conjunctions."""
+            kids = [index[id(peel_weights(c)[1])] for c in (core.left, core.right)]  # type: ignore[attr-defined]
+            ops = [tree.nodes[k].op for k in kids]
+            if sorted(op == "state" for op in ops) != [False, True]:
+                return None
+            t = kids[ops.index("state") ^ 1]
+            if t not in names or tree.nodes[t].op in ("and", "or"):
+                return None
+            live = tokens([names[t]["open"], names[t]["wait"]], prev=True)
+            idle = tokens([names[t]["idle"]], prev=True)
+            r_t = terms[ops.index("state") ^ 1]
+            return R.Sum((R.Gated(idle, R.Min(terms, active=active)), R.Gated(live, r_t)))
+
         def head(g: A.Formula) -> R.RExpr | None:
             """The reward of what ``g`` needs at the sample it starts, where that is a state formula:
-            ``g`` itself, the child of ``G``, ``F`` (interval from 0), the right side of ``U``, ``R``;
+            ``g`` itself, the child of ``G`` (interval from 0), the right side of ``U``, ``R``;
             the min (``&``) or max (``|``) of the sides'; None where ``g`` needs nothing yet."""
             w, core = peel_weights(g)
             if is_state_formula(core):
@@ -478,7 +499,9 @@ class _Builder(ViolationWatches):
             interval = getattr(core, "interval", None)
             if interval is None or interval.lo > 0 or not interval.lo_closed:
                 return None
-            if isinstance(core, (A.Globally, A.Eventually)):
+            if isinstance(core, A.Eventually):
+                return None  # it needs nothing at its first sample: a later one in its window will do
+            if isinstance(core, A.Globally):
                 child = head(core.child)
             elif isinstance(core, (A.Until, A.Release)):
                 child = head(core.right)
