@@ -1,0 +1,162 @@
+"""Roll a policy out on scenarios of a :class:`~mitlc.verify.space.SearchSpace` and judge each rollout.
+
+All scenarios of a batch step together along the plant's run axis: one ``act``, one plant
+step and one net step per sample for the whole batch, whatever its size. Varied parameters
+are arrays ``(B,)`` in the plant's parameter mapping (a plant's ``dynamics`` written with
+:func:`mitlc.plants.base.ode_dynamics` broadcasts them; :func:`check_batched_params` tests
+that a plant does).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mitlc.errors import InputError
+from mitlc.monitor.offline import MonitorResult, monitor
+from mitlc.plants.base import Plant, make_integrator
+from mitlc.spec.model import Spec
+from mitlc.verify.space import SearchSpace
+
+__all__ = ["Judged", "roll_out", "judge", "evaluate", "base_params", "check_batched_params", "check_plant"]
+
+
+@dataclass(frozen=True)
+class Judged:
+    """Rollouts of ``B`` scenarios and the monitor's verdict on each."""
+
+    z: np.ndarray
+    """The scenarios' points of the unit cube, ``(B, dim)``."""
+    states: np.ndarray
+    """``(B, N + 1, n)``: the states from the start on, one row per sample."""
+    actions: np.ndarray
+    """``(B, N)`` (one input) or ``(B, N, m)``: the inputs the plant got (policy plus disturbance, clipped)."""
+    dt: float
+    result: MonitorResult
+
+    @property
+    def robustness(self) -> np.ndarray:
+        return self.result.robustness
+
+    @property
+    def satisfied(self) -> np.ndarray:
+        return self.result.satisfied
+
+
+def base_params(spec: Spec, dt: float) -> dict[str, float]:
+    """The plant's parameters as the spec sets them, with the policy's sample time ``dt``."""
+    plant = spec.plant
+    if plant is None:
+        raise InputError("the spec names no plant", file=spec.path)
+    p = plant.params(dict(spec.plant_params))
+    p["dt"] = float(dt)
+    return p
+
+
+def check_plant(plant: Plant) -> None:
+    """A plant that cannot be put in a chosen state (a Gymnasium environment) cannot be verified
+    from chosen starts: one line."""
+    if plant.stepped:
+        raise InputError(
+            f"plant '{plant.name}' is an environment that resets itself: verify needs a plant it can start "
+            "in a chosen state",
+            file="--policy",
+        )
+
+
+def check_batched_params(plant: Plant, params: Mapping[str, float], vary: tuple[tuple[str, float, float], ...]) -> None:
+    """One step of two copies with the varied parameters at their ends, together and one by one:
+    a plant whose ``dynamics`` does not take a parameter per copy fails here, as one line naming
+    ``--vary``, not deep in a rollout."""
+    if not vary:
+        return
+    mid = np.array([[0.5 * (v.lo + v.hi) for v in plant.state]] * 2)
+    u = np.zeros(2) if plant.n_inputs == 1 else np.zeros((2, plant.n_inputs))
+    both: dict[str, Any] = dict(params)
+    both.update({n: np.array([lo, hi]) for n, lo, hi in vary})
+    try:
+        with np.errstate(all="ignore"):
+            together = plant.step(mid.copy(), u, both)
+            apart = [
+                plant.step(mid[r : r + 1].copy(), u[r : r + 1], {**params, **{n: (lo, hi)[r] for n, lo, hi in vary}})
+                for r in range(2)
+            ]
+    except Exception as exc:  # the user's dynamics: whatever it raised, one line
+        raise InputError(
+            f"plant '{plant.name}' cannot step copies with a parameter each ({type(exc).__name__}: {exc}); "
+            "write its dynamics with mitlc.plants.base.ode_dynamics, or vary nothing",
+            file="--vary",
+        ) from None
+    if not np.allclose(together, np.concatenate(apart), equal_nan=True):
+        raise InputError(
+            f"plant '{plant.name}' steps copies with a parameter each differently from one by one: its dynamics "
+            "reads a parameter as one number (write it with mitlc.plants.base.ode_dynamics, or vary nothing)",
+            file="--vary",
+        )
+
+
+def _stepper(plant: Plant, params: Mapping[str, Any], varied: bool) -> Callable[[np.ndarray, np.ndarray], None]:
+    """The in-place one-step map: the plant's fastest (:func:`make_integrator`) with fixed
+    parameters, :meth:`Plant.step` with a row of parameters per copy."""
+    if not varied:
+        return make_integrator(plant, params)
+
+    def advance(x: np.ndarray, u: np.ndarray) -> None:
+        x[...] = plant.step(x.copy(), u, params)
+
+    return advance
+
+
+def roll_out(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """The states ``(B, steps + 1, n)`` and applied inputs of ``policy`` from the scenarios ``z``.
+
+    ``policy`` is a :class:`mitlc.learn.policy.Policy` (``reset``, ``act``, ``step`` and ``dt``);
+    rollout ``b`` acts with trained run ``b % policy.runs``, as ``mitlc simulate`` does."""
+    plant = spec.plant
+    assert plant is not None  # SearchSpace.of refused a spec without one
+    sc = space.decode(z)
+    B, m = sc.x0.shape[0], plant.n_inputs
+    params: dict[str, Any] = base_params(spec, policy.dt)
+    params.update(sc.params)
+    advance = _stepper(plant, params, varied=bool(sc.params))
+    if plant.inputs is None:
+        u_max = np.asarray(params["u_max"], dtype=float)
+        lo, hi = -u_max, u_max
+    else:
+        box = plant.input_box(params)
+        lo, hi = box[0], box[1]
+    disturbed = bool(np.any(sc.disturbance))
+    x = np.array(sc.x0, dtype=float)
+    states = np.empty((B, steps + 1, x.shape[1]))
+    actions = np.empty((B, steps) if m == 1 else (B, steps, m))
+    states[:, 0] = x
+    state = policy.reset(x.copy())
+    pieces = sc.disturbance.shape[1]
+    for k in range(steps):
+        u = np.asarray(policy.act(x, state), dtype=float).reshape((B,) if m == 1 else (B, m))
+        if disturbed:
+            d = sc.disturbance[:, min(pieces - 1, k * pieces // steps)]
+            u = u + (d[:, 0] if m == 1 else d)
+        u = np.clip(u, lo, hi)
+        advance(x, u)
+        state = policy.step(state, x.copy())
+        states[:, k + 1], actions[:, k] = x, u
+    return states, actions
+
+
+def judge(spec: Spec, states: np.ndarray, dt: float) -> MonitorResult:
+    """The monitor's verdict on each rollout, by the spec's ``check`` line, else its ``formula``."""
+    try:
+        return monitor(spec, states, dt, spec.monitor_formula)
+    except InputError as exc:  # the states the rollouts reached (a plant that blew up)
+        raise exc.located("the rollouts") from None
+
+
+def evaluate(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: int) -> Judged:
+    """:func:`roll_out` and :func:`judge` the scenarios ``z``."""
+    z = np.atleast_2d(np.asarray(z, dtype=float))
+    states, actions = roll_out(policy, spec, space, z, steps)
+    return Judged(z, states, actions, float(policy.dt), judge(spec, states, policy.dt))

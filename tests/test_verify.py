@@ -1,0 +1,243 @@
+"""``mitlc verify`` and :mod:`mitlc.verify`: the bound, the batched rollouts, falsification, the command."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mitlc.cli import main
+from mitlc.spec.parse import parse_spec
+from mitlc.verify import SearchSpace, clopper_pearson_lower, falsify, parse_disturb, parse_vary
+from mitlc.verify.rollout import evaluate, roll_out
+from mitlc.verify.stats import binomial_upper_tail
+
+# ------------------------------------------------------------------ the bound
+
+CASES = [(0, 1), (1, 1), (0, 10), (1, 10), (5, 10), (9, 10), (10, 10), (0, 1000), (987, 1000), (1000, 1000)]
+
+
+@pytest.mark.parametrize("k, n", CASES)
+@pytest.mark.parametrize("confidence", [0.95, 0.99])
+def test_clopper_pearson_equals_the_beta_quantile(k, n, confidence):
+    """The lower bound is the (1 - confidence) quantile of Beta(k, n - k + 1) (scipy's, computed
+    independently of the bisection), 0 for k = 0."""
+    stats = pytest.importorskip("scipy.stats", reason="the independent check is scipy's beta quantile")
+    expected = 0.0 if k == 0 else stats.beta.ppf(1 - confidence, k, n - k + 1)
+    assert clopper_pearson_lower(k, n, confidence) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("n", [1, 2, 10, 59, 1000])
+def test_clopper_pearson_closed_forms(n):
+    """No failures: the bound solves p^n = alpha; 59 successes of 59 are the classic 95 % / 5 % case."""
+    assert clopper_pearson_lower(n, n) == pytest.approx(0.05 ** (1 / n), rel=1e-14)
+    assert clopper_pearson_lower(0, n) == 0.0
+    if n == 59:
+        assert clopper_pearson_lower(59, 59) > 0.95 > clopper_pearson_lower(58, 58)
+
+
+@pytest.mark.parametrize("k, n", [(3, 10), (7, 10), (20, 40)])
+def test_the_bound_is_where_the_binomial_tail_is_alpha(k, n):
+    """At the bound, P(X >= k) = 0.05 by the binomial sum written out with math.comb."""
+    p = clopper_pearson_lower(k, n)
+    tail = sum(math.comb(n, i) * p**i * (1 - p) ** (n - i) for i in range(k, n + 1))
+    assert tail == pytest.approx(0.05, rel=1e-9)
+    assert binomial_upper_tail(k, n, p) == pytest.approx(tail, rel=1e-12)
+
+
+def test_bad_counts_are_refused():
+    with pytest.raises(ValueError):
+        clopper_pearson_lower(3, 2)
+    with pytest.raises(ValueError):
+        clopper_pearson_lower(0, 0)
+
+
+# ------------------------------------------------------------------ a planted weakness
+
+SPEC = parse_spec(
+    "plant mass-damper\ninit q in [-1, 1], qdot in [-1, 1]\nhorizon 3\n"
+    "prop home = abs(q) < 0.1\nformula F[0, 2] G home\n"
+)
+
+
+class Planted:
+    """A PD controller behind the Policy interface, good on most of the init box, whose gain falls
+    towards a start near (q, qdot) = (0.7, 0.6): the rollouts from within 0.15 of it become slow,
+    and the closest ones miss the 2 s deadline (0.17 % of the box)."""
+
+    runs = 1
+    dt = 0.03
+    spec = SPEC
+
+    def __init__(self, centre=(0.7, 0.6), radius=0.15):
+        self.centre, self.radius = np.array(centre), radius
+
+    def reset(self, x0):
+        d = np.linalg.norm(x0 - self.centre, axis=1)
+        return 1.0 - 0.995 * np.maximum(0.0, 1.0 - d / self.radius)  # the gain of each rollout
+
+    def act(self, x, gain):
+        return -(20.0 * gain) * x[:, 0] - 6.0 * x[:, 1]
+
+    def step(self, gain, x_next):
+        return gain
+
+
+STEPS = 100
+
+
+def objective_of(policy, space):
+    def objective(z):
+        j = evaluate(policy, SPEC, space, z, STEPS)
+        return j.robustness, j.satisfied
+
+    return objective
+
+
+def test_the_planted_weakness_is_small():
+    space = SearchSpace.of(SPEC)
+    j = evaluate(Planted(), SPEC, space, space.sample(4000, np.random.default_rng(5)), STEPS)
+    assert 0.0 < 1 - j.satisfied.mean() < 0.005
+    bad = j.z[~j.satisfied] * 2 - 1  # back to (q, qdot)
+    assert np.all(np.linalg.norm(bad - [0.7, 0.6], axis=1) < 0.15)
+
+
+def test_falsification_finds_the_weakness_more_often_than_uniform_sampling():
+    """Differential evolution finds a counterexample within 500 rollouts in at least 9 of 10 seeds;
+    uniform sampling with the same 500 rollouts in fewer (measured: 9/10 and 4/10, docs/verify.md)."""
+    pytest.importorskip("scipy.optimize", reason="--method de is scipy's differential evolution")
+    space = SearchSpace.of(SPEC)
+    objective = objective_of(Planted(), space)
+    found = {m: sum(falsify(objective, space.dim, 500, m, seed=s).found for s in range(10)) for m in ("de", "uniform")}
+    assert found["de"] >= 9 and found["uniform"] < found["de"], found
+
+
+def test_a_search_stops_at_its_budget_and_is_deterministic():
+    space = SearchSpace.of(SPEC)
+    objective = objective_of(Planted(centre=(5.0, 5.0)), space)  # no weakness inside the box
+    a = falsify(objective, space.dim, 150, "uniform", seed=3)
+    b = falsify(objective, space.dim, 150, "uniform", seed=3)
+    assert (a.rollouts, a.found) == (150, False)
+    assert np.array_equal(a.z, b.z) and np.array_equal(a.robustness, b.robustness)
+
+
+def test_cma_respects_the_budget():
+    pytest.importorskip("cma", reason="--method cma needs the cma package")
+    space = SearchSpace.of(SPEC)
+    s = falsify(objective_of(Planted(centre=(5.0, 5.0)), space), space.dim, 60, "cma", seed=1)
+    assert s.rollouts == 60 and not s.found and np.all((s.z >= 0) & (s.z <= 1))
+
+
+# ------------------------------------------------------------------ batched rollouts
+
+
+def test_a_batch_with_varied_parameters_and_disturbances_equals_rollouts_one_by_one():
+    """Scenarios rolled out together along the run axis, each with its own mass and disturbance,
+    give the states each gives alone (its parameters as plain numbers)."""
+    space = SearchSpace.of(SPEC, parse_vary(["M=0.3:0.9", "B=0:0.2"], SPEC), parse_disturb(["u=3"], SPEC), pieces=2)
+    assert space.names == ("q", "qdot", "M", "B", "u[0]", "u[1]")
+    z = np.random.default_rng(2).random((4, space.dim))
+    together, acts = roll_out(Planted(), SPEC, space, z, 40)
+    for i in range(4):
+        p = space.decode(z[i : i + 1]).params
+        plant_line = f"plant mass-damper(M = {float(p['M'][0])!r}, B = {float(p['B'][0])!r})"
+        alone_spec = parse_spec(SPEC.source.replace("plant mass-damper", plant_line))
+        alone_space = SearchSpace.of(alone_spec, (), space.disturb, pieces=2)  # the parameters as numbers
+        alone, _ = roll_out(Planted(), alone_spec, alone_space, np.r_[z[i, :2], z[i, 4:]][None, :], 40)
+        np.testing.assert_allclose(together[i], alone[0], rtol=1e-12, atol=1e-12)
+    d = space.decode(z).disturbance[:, :, 0]
+    assert np.all(np.abs(d) <= 3) and np.all(np.abs(acts) <= 10)  # u_max = 10
+    assert acts.shape == (4, 40)
+
+
+# ------------------------------------------------------------------ the command
+
+P2_SHORT = """\
+plant pendulum(u_max = 10)
+init q in [2.4, pi], qdot = 0
+horizon 1
+prop kappa = abs(q) < 0.3
+prop psi   = 0.3 < q < pi/2 + 0.5
+formula F G kappa & 10 * G !psi
+"""
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A SACPN policy of two runs trained two trials on problem 2 (1 s): it fails nearly everywhere."""
+    folder = tmp_path_factory.mktemp("verify")
+    spec = folder / "p2.mitl"
+    spec.write_text(P2_SHORT)
+    res = run("train", "--spec", spec, "--runs", 2, "--trials", 2, "--out", folder / "pol", "-q", "--no-plots")
+    assert res.exit_code == 0, res.output
+    return folder
+
+
+def test_counterexamples_are_traces_mitlc_check_rejects(trained, tmp_path):
+    out = tmp_path / "out"
+    res = run("verify", "--policy", trained / "pol", "--samples", 50, "--budget", 40, "--out", out, "--keep", 2)
+    assert res.exit_code == 1, res.output
+    report = json.loads((out / "report.json").read_text())
+    s = report["sampling"]
+    assert s["samples"] == 50 and s["lower_bound"] == clopper_pearson_lower(s["satisfied"], 50)
+    assert report["exit_status"] == 1 and len(report["counterexamples"]) == 2
+    first = report["counterexamples"][0]
+    assert first["robustness"] < 0 and 2.4 <= first["start"]["q"] <= math.pi
+    assert first["robustness"] <= report["counterexamples"][1]["robustness"]
+    checked = run("check", out / "spec.mitl", out / first["trace"])
+    assert checked.exit_code == 1 and "VIOLATED" in checked.output
+    with np.load(out / first["trace"]) as trace:
+        assert trace["q"][0] == pytest.approx(first["start"]["q"]) and trace["start_qdot"] == 0
+    assert (out / "cex_000.png").read_bytes().startswith(b"\x89PNG")
+    with np.load(out / "counterexamples.npz") as cex:
+        assert cex["x0"].shape == (2, 2) and cex["x0"][0, 0] == pytest.approx(first["start"]["q"])
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["report.json", "spec.mitl", "counterexamples.npz", "cex_000.npz", "cex_000.png", "cex_001.npz", "cex_001.png"]
+    )
+
+
+def test_exit_0_when_satisfied_and_1_when_the_bound_falls_short(trained, tmp_path):
+    """Judged by a spec of the same plant that every rollout meets: exit 0; the same 100 rollouts
+    cannot show 0.99 at 95 % (0.05^(1/100) = 0.9705), so --require 0.99 is exit 1."""
+    easy = tmp_path / "easy.mitl"
+    easy.write_text(P2_SHORT.replace("formula F G kappa & 10 * G !psi", "formula G abs(qdot) < 1000"))
+    common = ("verify", "--policy", trained / "pol", "--spec", easy, "--samples", 100, "--budget", 30)
+    ok = run(*common)
+    assert ok.exit_code == 0, ok.output
+    assert "100/100 rollouts satisfy" in ok.output and "lower bound 0.9705" in ok.output
+    short = run(*common, "--require", 0.99)
+    assert short.exit_code == 1 and "below --require 0.99" in short.output
+    assert run(*common, "--require", 0.97).exit_code == 0
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--vary", "mass=1:2"), "--vary: error: 'mass' is not a parameter of plant 'pendulum'"),
+        (("--vary", "M=0.2:0.1"), "--vary: error: 'M=0.2:0.1': an empty range"),
+        (("--vary", "M=0.2"), "--vary: error: 'M=0.2': expected NAME=LO:HI"),
+        (("--vary", "dt=0.01:0.02"), "--vary: error: 'dt' cannot vary"),
+        (("--disturb", "w=1"), "--disturb: error: 'w' is not an input of plant 'pendulum'"),
+        (("--samples", 0), "--samples: error: 0 is not in the range"),
+        (("--spec", "mass_damper/overshoot"), "--spec mass_damper/overshoot: error: the policy was trained for plant"),
+        (("--method", "nelder"), "--method: error:"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(trained, tmp_path, args, message):
+    out = tmp_path / "out"
+    res = run("verify", "--policy", trained / "pol", "--budget", 0, "--samples", 5, *args, "--out", out)
+    assert res.exit_code == 2, res.output
+    assert res.output.startswith(message) and len(res.output.strip().splitlines()) == 1, res.output
+    assert not out.exists() or not any(out.iterdir())  # nothing written
+
+
+def test_a_folder_that_is_no_training_is_one_line(tmp_path):
+    res = run("verify", "--policy", tmp_path, "--samples", 5)
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1 and "no params.npz" in res.output
