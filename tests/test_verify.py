@@ -241,3 +241,27 @@ def test_bad_input_is_one_line_and_exit_2(trained, tmp_path, args, message):
 def test_a_folder_that_is_no_training_is_one_line(tmp_path):
     res = run("verify", "--policy", tmp_path, "--samples", 5)
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1 and "no params.npz" in res.output
+
+
+class OneBadRun(Planted):
+    """Three trained runs behind one policy, as mitlc train saves them: row b acts with run b % 3;
+    run 2 has almost no gain (it fails from nearly every start), runs 0 and 1 are good."""
+
+    runs = 3
+
+    def reset(self, x0):
+        return np.where(np.arange(x0.shape[0]) % 3 == 2, 0.005, 1.0)
+
+
+def test_each_scenario_acts_with_its_own_run_in_any_batch():
+    space = SearchSpace.of(SPEC, runs=3)
+    assert space.names == ("run", "q", "qdot")
+    z = np.random.default_rng(1).random((25, 3))
+    z[:, 1:] = 0.1 + 0.3 * z[:, 1:]  # starts away from q = 0, which run 2 would also meet
+    j = evaluate(OneBadRun(), SPEC, space, z, STEPS)
+    run = space.decode(z).run
+    assert set(run) == {0, 1, 2}
+    assert np.array_equal(j.satisfied, run != 2)
+    for i in (0, 7, 19):  # alone, each scenario rolls out as it did in the batch
+        alone = evaluate(OneBadRun(), SPEC, space, z[i : i + 1], STEPS)
+        np.testing.assert_array_equal(alone.states[0], j.states[i])

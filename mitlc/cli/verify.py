@@ -93,17 +93,19 @@ def _judging_spec(policy: Any, spec_path: str | None) -> Any:
 def _scenario_text(space: Any, z: np.ndarray) -> str:
     """``q=0.612, qdot=0.498, M=0.55, u[0]=+0.20``: the free coordinates of one scenario."""
     sc = space.decode(z[None, :])
-    parts = [f"{space.state_names[i]}={sc.x0[0, i]:.4g}" for i in space.free]
+    parts = [f"run {int(sc.run[0])}"] if space.runs > 1 else []
+    parts += [f"{space.state_names[i]}={sc.x0[0, i]:.4g}" for i in space.free]
     parts += [f"{n}={sc.params[n][0]:.4g}" for n, _, _ in space.vary]
     for name, _ in space.disturb:
         j = space.input_names.index(name)
         parts += [f"d_{name}[{p}]={sc.disturbance[0, p, j]:+.4g}" for p in range(space.pieces)]
-    return ", ".join(parts) if parts else "the one start of the init box"
+    return ", ".join(parts) if parts else "the one scenario (one start, one run)"
 
 
 def _scenario_record(space: Any, z: np.ndarray) -> dict:
     sc = space.decode(z[None, :])
     return {
+        "run": int(sc.run[0]),
         "start": {n: float(sc.x0[0, i]) for i, n in enumerate(space.state_names)},
         "params": {n: float(v[0]) for n, v in sc.params.items()},
         "disturbance": {
@@ -153,6 +155,7 @@ def _write_counterexamples(folder: Path, spec: Any, space: Any, judged: Any, ord
         assert sc is not None
         extra.update({f"param_{n}": np.array(v[k]) for n, v in sc.params.items()})
         extra.update({f"start_{n}": np.array(sc.x0[k, j]) for j, n in enumerate(space.state_names)})
+        extra["run"] = np.array(sc.run[k])
         for n, _ in space.disturb:
             extra[f"disturbance_{n}"] = sc.disturbance[k, :, space.input_names.index(n)]
         columns = {n: judged.states[i, :, j] for j, n in enumerate(plant.state_names)}
@@ -185,6 +188,7 @@ def _write_counterexamples(folder: Path, spec: Any, space: Any, judged: Any, ord
         "coordinates": np.array(space.names, dtype=str),
         "state_names": np.array(space.state_names, dtype=str),
         "x0": sc_all.x0 if sc_all is not None else np.zeros((0, len(space.state_names))),
+        "run": sc_all.run if sc_all is not None else np.zeros(0, dtype=np.int64),
         "robustness": judged.result.robustness[order],
     }
     for n, _, _ in space.vary:
@@ -357,7 +361,8 @@ def verify(
     spec = _judging_spec(policy, spec_path)
     plant = spec.plant
     check_plant(plant)
-    space = SearchSpace.of(spec, parse_vary(vary, spec), parse_disturb(disturb, spec), pieces)
+    runs = int(getattr(policy, "runs", 1))
+    space = SearchSpace.of(spec, parse_vary(vary, spec), parse_disturb(disturb, spec), pieces, runs)
     from mitlc.verify.rollout import base_params
 
     check_batched_params(plant, base_params(spec, policy.dt), space.vary)
@@ -404,22 +409,29 @@ def verify(
             j = run(z)
             return j.robustness, j.satisfied
 
-        search = falsify(
-            objective, space.dim, budget, method, seed=int(search_seq.generate_state(1)[0]), start=z_all[worst]
+        search = falsify(  # from the least robust sample, through the whole budget: the least robust rollout
+            objective,
+            space.dim,
+            budget,
+            method,
+            seed=int(search_seq.generate_state(1)[0]),
+            start=z_all[worst],
+            stop=False,
         )
         search_s = time.perf_counter() - s0
-        least = int(np.argmin(search.robustness)) if search.rollouts else None
-        if search.found:
-            i = search.worst(1)[0]
-            click.echo(
-                f"falsified ({method}): a counterexample within {search.first} rollouts of the budget of {budget}; "
-                f"robustness {search.robustness[i]:+.4g} at {_scenario_text(space, search.z[i])} ({search_s:.1f} s)"
-            )
-        elif least is not None:
-            click.echo(
-                f"not falsified ({method}): no counterexample in {search.rollouts} rollouts; least robustness "
-                f"{search.robustness[least]:+.4g} at {_scenario_text(space, search.z[least])} ({search_s:.1f} s)"
-            )
+        if search.rollouts:
+            least = int(np.argmin(np.nan_to_num(search.robustness, nan=-np.inf)))
+            where = f"robustness {search.robustness[least]:+.4g} at {_scenario_text(space, search.z[least])}"
+            if search.found:
+                click.echo(
+                    f"falsified ({method}, from the least robust sample): the first counterexample after "
+                    f"{search.first} of {search.rollouts} rollouts; the least robust: {where} ({search_s:.1f} s)"
+                )
+            else:
+                click.echo(
+                    f"not falsified ({method}, from the least robust sample): no counterexample in "
+                    f"{search.rollouts} rollouts; the least robust: {where} ({search_s:.1f} s)"
+                )
 
     violated = pool.merged()
     order = np.zeros(0, dtype=int)

@@ -21,7 +21,16 @@ from mitlc.plants.base import Plant, make_integrator
 from mitlc.spec.model import Spec
 from mitlc.verify.space import SearchSpace
 
-__all__ = ["Judged", "roll_out", "judge", "evaluate", "base_params", "check_batched_params", "check_plant"]
+__all__ = [
+    "Judged",
+    "roll_out",
+    "rows_for",
+    "judge",
+    "evaluate",
+    "base_params",
+    "check_batched_params",
+    "check_plant",
+]
 
 
 @dataclass(frozen=True)
@@ -110,17 +119,36 @@ def _stepper(plant: Plant, params: Mapping[str, Any], varied: bool) -> Callable[
     return advance
 
 
+def rows_for(run: np.ndarray, runs: int) -> tuple[np.ndarray, int]:
+    """Where each scenario goes in the batch so that it acts with its run: a policy acts on row ``b``
+    with run ``b % runs``, so scenario ``i`` goes to row ``run[i] + runs * k`` (its ``k``-th of that
+    run); and the batch's size (rows no scenario takes are filled, and their rollouts dropped).
+
+    >>> rows_for(np.array([1, 0, 1, 1]), 2)
+    (array([1, 0, 3, 5]), 6)
+    """
+    seen = np.zeros(runs, dtype=np.int64)
+    k = np.empty(run.shape[0], dtype=np.int64)
+    for i, r in enumerate(run):
+        k[i] = seen[r]
+        seen[r] += 1
+    return run + runs * k, int(runs * seen.max()) if run.shape[0] else 0
+
+
 def roll_out(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray]:
     """The states ``(B, steps + 1, n)`` and applied inputs of ``policy`` from the scenarios ``z``.
 
-    ``policy`` is a :class:`mitlc.learn.policy.Policy` (``reset``, ``act``, ``step`` and ``dt``);
-    rollout ``b`` acts with trained run ``b % policy.runs``, as ``mitlc simulate`` does."""
+    ``policy`` is a :class:`mitlc.learn.policy.Policy` (``reset``, ``act``, ``step``, ``runs`` and
+    ``dt``); each scenario acts with its run (:attr:`Scenarios.run`, placed by :func:`rows_for`)."""
     plant = spec.plant
     assert plant is not None  # SearchSpace.of refused a spec without one
     sc = space.decode(z)
-    B, m = sc.x0.shape[0], plant.n_inputs
+    rows, B = rows_for(sc.run, int(getattr(policy, "runs", 1)))
+    fill = np.zeros(B, dtype=np.int64)  # a row no scenario takes repeats scenario 0
+    fill[rows] = np.arange(rows.shape[0])
+    m = plant.n_inputs
     params: dict[str, Any] = base_params(spec, policy.dt)
-    params.update(sc.params)
+    params.update({n: v[fill] for n, v in sc.params.items()})
     advance = _stepper(plant, params, varied=bool(sc.params))
     if plant.inputs is None:
         u_max = np.asarray(params["u_max"], dtype=float)
@@ -128,23 +156,24 @@ def roll_out(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: 
     else:
         box = plant.input_box(params)
         lo, hi = box[0], box[1]
-    disturbed = bool(np.any(sc.disturbance))
-    x = np.array(sc.x0, dtype=float)
+    disturbance = sc.disturbance[fill]
+    disturbed = bool(np.any(disturbance))
+    x = np.array(sc.x0[fill], dtype=float)
     states = np.empty((B, steps + 1, x.shape[1]))
     actions = np.empty((B, steps) if m == 1 else (B, steps, m))
     states[:, 0] = x
     state = policy.reset(x.copy())
-    pieces = sc.disturbance.shape[1]
+    pieces = disturbance.shape[1]
     for k in range(steps):
         u = np.asarray(policy.act(x, state), dtype=float).reshape((B,) if m == 1 else (B, m))
         if disturbed:
-            d = sc.disturbance[:, min(pieces - 1, k * pieces // steps)]
+            d = disturbance[:, min(pieces - 1, k * pieces // steps)]
             u = u + (d[:, 0] if m == 1 else d)
         u = np.clip(u, lo, hi)
         advance(x, u)
         state = policy.step(state, x.copy())
         states[:, k + 1], actions[:, k] = x, u
-    return states, actions
+    return states[rows], actions[rows]
 
 
 def judge(spec: Spec, states: np.ndarray, dt: float) -> MonitorResult:

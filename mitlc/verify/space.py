@@ -104,12 +104,15 @@ def parse_disturb(items: Sequence[str], spec: Spec) -> tuple[tuple[str, float], 
 
 @dataclass(frozen=True)
 class Scenarios:
-    """``B`` scenarios: starts ``x0 (B, n)``, varied parameters (name -> ``(B,)``) and the
-    disturbance ``(B, pieces, m)`` added to the ``m`` inputs (zero where not disturbed)."""
+    """``B`` scenarios: starts ``x0 (B, n)``, varied parameters (name -> ``(B,)``), the
+    disturbance ``(B, pieces, m)`` added to the ``m`` inputs (zero where not disturbed) and
+    the policy's run each is rolled out with."""
 
     x0: np.ndarray
     params: Mapping[str, np.ndarray]
     disturbance: np.ndarray
+    run: np.ndarray
+    """``(B,)``: the trained run of the policy each scenario is rolled out with."""
 
 
 @dataclass(frozen=True)
@@ -128,6 +131,10 @@ class SearchSpace:
     """``(input, eps)`` per disturbed input: ``|d| <= eps``."""
     pieces: int = 1
     """A disturbance is constant over each of ``pieces`` equal spans of the horizon."""
+    runs: int = 1
+    """The trained runs of the policy (``mitlc train --runs``): each an independent controller. With
+    more than one, the first coordinate picks the run (``floor(z * runs)``): a training's runs are
+    sampled and searched together, as ``mitlc train``'s success rate counts them together."""
 
     @classmethod
     def of(
@@ -136,6 +143,7 @@ class SearchSpace:
         vary: Sequence[tuple[str, float, float]] = (),
         disturb: Sequence[tuple[str, float]] = (),
         pieces: int = 1,
+        runs: int = 1,
     ) -> SearchSpace:
         """The space of ``spec``'s ``init`` box, with ``vary`` and ``disturb`` (:func:`parse_vary`,
         :func:`parse_disturb`)."""
@@ -147,7 +155,9 @@ class SearchSpace:
         init = {r.var: (float(r.lo), float(r.hi)) for r in spec.init}
         lo = tuple(init.get(v, (0.0, 0.0))[0] for v in plant.state_names)
         hi = tuple(init.get(v, (0.0, 0.0))[1] for v in plant.state_names)
-        return cls(plant.state_names, lo, hi, tuple(vary), plant.input_names, tuple(disturb), int(pieces))
+        if runs < 1:
+            raise ValueError(f"a policy has 1 run or more, got {runs}")
+        return cls(plant.state_names, lo, hi, tuple(vary), plant.input_names, tuple(disturb), int(pieces), int(runs))
 
     @property
     def free(self) -> tuple[int, ...]:
@@ -156,10 +166,11 @@ class SearchSpace:
 
     @property
     def names(self) -> tuple[str, ...]:
-        """A name per coordinate: the free state variables, the varied parameters, then
-        ``INPUT[piece]`` per disturbed input and piece."""
+        """A name per coordinate: ``run`` (with several runs), the free state variables, the varied
+        parameters, then ``INPUT[piece]`` per disturbed input and piece."""
         dist = tuple(f"{n}[{j}]" for n, _ in self.disturb for j in range(self.pieces))
-        return tuple(self.state_names[i] for i in self.free) + tuple(v[0] for v in self.vary) + dist
+        run = ("run",) if self.runs > 1 else ()
+        return run + tuple(self.state_names[i] for i in self.free) + tuple(v[0] for v in self.vary) + dist
 
     @property
     def dim(self) -> int:
@@ -178,6 +189,10 @@ class SearchSpace:
         lo, hi = np.array(self.init_lo), np.array(self.init_hi)
         x0 = np.repeat(lo[None, :], B, axis=0)
         c = 0
+        run = np.zeros(B, dtype=np.int64)
+        if self.runs > 1:
+            run = np.minimum(self.runs - 1, np.floor(z[:, 0] * self.runs)).astype(np.int64)
+            c = 1
         for i in self.free:
             x0[:, i] = lo[i] + (hi[i] - lo[i]) * z[:, c]
             c += 1
@@ -190,4 +205,4 @@ class SearchSpace:
             j = self.input_names.index(name)
             dist[:, :, j] = eps * (2.0 * z[:, c : c + self.pieces] - 1.0)
             c += self.pieces
-        return Scenarios(x0, params, dist)
+        return Scenarios(x0, params, dist, run)
