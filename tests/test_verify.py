@@ -277,3 +277,55 @@ def test_the_pages_python_runs(capsys):
     exec(compile(code, "docs/verify.md", "exec"), {})
     lines = capsys.readouterr().out.splitlines()
     assert lines[0] == f"1000 {0.05 ** (1 / 1000)}" and lines[1] == "False 200"
+
+
+# ------------------------------------------------------------------ falsification-guided training
+
+
+def test_guided_trials_start_from_the_given_states_and_evaluation_from_the_box():
+    from mitlc.cli.guided import guide_starts
+    from mitlc.learn.sacpn import Sacpn
+    from mitlc.petri.compile import compile_spec
+
+    spec = parse_spec(P2_SHORT)
+    guided, plain = (Sacpn(compile_spec(spec), runs=4, seed=3) for _ in range(2))
+    starts = np.array([[1.0, 0.5], [-1.0, 0.25]])
+    guide_starts(guided, starts, share=1.0)
+    x = guided.sample_init(guided.rngs)
+    assert all(any(np.array_equal(row, s) for s in starts) for row in x)
+    np.testing.assert_array_equal(guided.evaluation_states(), plain.evaluation_states())
+    half = Sacpn(compile_spec(spec), runs=200, seed=3)
+    guide_starts(half, starts)  # share 1/2: some runs from the states, the rest from the box
+    x = half.sample_init(half.rngs)
+    given = np.isin(x[:, 1], starts[:, 1])
+    assert 60 < given.sum() < 140 and np.all((x[~given, 0] >= 2.4) & (x[~given, 0] <= np.pi))
+
+
+def test_resume_with_the_counterexamples_starts(trained, tmp_path):
+    import shutil
+
+    pol = tmp_path / "pol"
+    shutil.copytree(trained / "pol", pol)
+    out = tmp_path / "cex"
+    assert run("verify", "--policy", pol, "--samples", 20, "--budget", 0, "--keep", 5, "--out", out).exit_code == 1
+    res = run("train", "--resume", pol, "--trials", 4, "--starts", out / "counterexamples.npz", "-q", "--no-plots")
+    assert res.exit_code == 0, res.output
+    assert len(json.loads((pol / "metrics.json").read_text())["returns"][0]) == 4
+
+
+@pytest.mark.parametrize(
+    "arrays, message",
+    [
+        ({"z": np.zeros((1, 1))}, "no array 'x0'"),
+        ({"x0": np.zeros((2, 3))}, "x0 has shape (2, 3); expected (K, 2)"),
+        ({"x0": np.zeros((0, 2))}, "no states in it"),
+        ({"x0": np.zeros((1, 2)), "state_names": np.array(["x", "v"])}, "its states are (x, v)"),
+    ],
+)
+def test_bad_starts_are_one_line(trained, tmp_path, arrays, message):
+    f = tmp_path / "starts.npz"
+    np.savez(f, **arrays)
+    res = run("train", "--resume", trained / "pol", "--out", tmp_path / "o", "--trials", 3, "--starts", f, "-q")
+    assert res.exit_code == 2 and message in res.output and len(res.output.strip().splitlines()) == 1, res.output
+    res = run("train", "--spec", trained / "p2.mitl", "--starts", f, "-q")
+    assert res.exit_code == 2 and "--starts: error: --starts guides a resumed training" in res.output
