@@ -180,11 +180,18 @@ def trained(tmp_path_factory):
     return folder
 
 
-def test_counterexamples_are_traces_mitlc_check_rejects(trained, tmp_path):
+def test_counterexamples_are_traces_mitlc_check_rejects(trained, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing may land in the working folder
     out = tmp_path / "out"
+    out.mkdir()
+    (out / "cex_007.npz").write_bytes(b"a previous verification's")
+    (out / "notes.txt").write_text("the user's")
     res = run("verify", "--policy", trained / "pol", "--samples", 50, "--budget", 40, "--out", out, "--keep", 2)
     assert res.exit_code == 1, res.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    (out / "notes.txt").unlink()
     report = json.loads((out / "report.json").read_text())
+    assert report["violating_rollouts"] >= 50 - report["sampling"]["satisfied"]
     s = report["sampling"]
     assert s["samples"] == 50 and s["lower_bound"] == clopper_pearson_lower(s["satisfied"], 50)
     assert report["exit_status"] == 1 and len(report["counterexamples"]) == 2
@@ -329,3 +336,15 @@ def test_bad_starts_are_one_line(trained, tmp_path, arrays, message):
     assert res.exit_code == 2 and message in res.output and len(res.output.strip().splitlines()) == 1, res.output
     res = run("train", "--spec", trained / "p2.mitl", "--starts", f, "-q")
     assert res.exit_code == 2 and "--starts: error: --starts guides a resumed training" in res.output
+
+
+def test_a_rollout_that_diverges_is_a_counterexample_not_an_error():
+    from mitlc.verify.rollout import DIVERGED, judge
+
+    states = np.zeros((3, 5, 2))
+    states[1, 2:, 0] = np.inf
+    states[2, 4, 1] = np.nan
+    res = judge(SPEC, states, 0.5)
+    assert res.satisfied.tolist() == [True, False, False]
+    assert res.robustness[1] == res.robustness[2] == -np.inf and res.violation_time[1:].tolist() == [1.0, 2.0]
+    assert res.failing[1:] == (DIVERGED, DIVERGED)

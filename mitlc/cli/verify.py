@@ -14,6 +14,7 @@ rollout violated it or the bound falls short; 2 on bad input (one line). docs/ve
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -138,8 +139,9 @@ def _write_counterexamples(folder: Path, spec: Any, space: Any, judged: Any, ord
     from mitlc.verify.plots import counterexample_png
 
     plant = spec.plant
-    for old in sorted(folder.glob("cex_*.npz")) + sorted(folder.glob("cex_*.png")):
-        old.unlink(missing_ok=True)  # a previous verification's: they would read as this one's
+    for old in sorted(folder.iterdir()):  # a previous verification's: they would read as this one's
+        if re.fullmatch(r"cex_\d{3,}\.(npz|png)", old.name) and old.is_file():
+            old.unlink(missing_ok=True)
     records = []
     t = np.arange(judged.states.shape[1]) * judged.dt
     sc = space.decode(judged.z[order]) if len(order) else None
@@ -212,44 +214,52 @@ def _check_method(method: str) -> None:
         )
 
 
-class _Pool:
-    """The rollouts of sampling and falsification, kept for the counterexamples."""
+def _subset(judged: Any, rows: np.ndarray) -> Any:
+    """The rollouts ``rows`` of a :class:`~mitlc.verify.rollout.Judged`."""
+    from mitlc.monitor.offline import MonitorResult
+    from mitlc.verify.rollout import Judged
 
-    def __init__(self) -> None:
-        self.parts: list[Any] = []
+    r = judged.result
+    res = MonitorResult(
+        r.satisfied[rows], r.robustness[rows], r.violation_time[rows], tuple(r.failing[i] for i in rows)
+    )
+    return Judged(judged.z[rows], judged.states[rows], judged.actions[rows], judged.dt, res)
+
+
+def _joined(a: Any, b: Any) -> Any:
+    from mitlc.monitor.offline import MonitorResult
+    from mitlc.verify.rollout import Judged
+
+    cat = np.concatenate
+    ra, rb = a.result, b.result
+    res = MonitorResult(
+        cat([ra.satisfied, rb.satisfied]),
+        cat([ra.robustness, rb.robustness]),
+        cat([ra.violation_time, rb.violation_time]),
+        ra.failing + rb.failing,
+    )
+    return Judged(cat([a.z, b.z]), cat([a.states, b.states]), cat([a.actions, b.actions]), a.dt, res)
+
+
+class _Pool:
+    """The violating rollouts of sampling and falsification: how many, and the ``keep`` least robust
+    distinct scenarios among them (least robust first), kept as they come (memory: ``keep`` rollouts)."""
+
+    def __init__(self, keep: int) -> None:
+        self.keep = keep
+        self.violations = 0
+        self.kept: Any = None
 
     def add(self, judged: Any) -> None:
-        if not judged.satisfied.all():  # only violating rollouts are kept (memory: a budget of satisfied ones)
-            bad = ~judged.satisfied
-            from mitlc.monitor.offline import MonitorResult
-            from mitlc.verify.rollout import Judged
-
-            r = judged.result
-            fails = tuple(f for f, b in zip(r.failing, bad, strict=True) if b)
-            kept = MonitorResult(r.satisfied[bad], r.robustness[bad], r.violation_time[bad], fails)
-            self.parts.append(Judged(judged.z[bad], judged.states[bad], judged.actions[bad], judged.dt, kept))
-
-    def merged(self) -> Any:
-        from mitlc.monitor.offline import MonitorResult
-        from mitlc.verify.rollout import Judged
-
-        if not self.parts:
-            return None
-        cat = np.concatenate
-        res = MonitorResult(
-            cat([p.result.satisfied for p in self.parts]),
-            cat([p.result.robustness for p in self.parts]),
-            cat([p.result.violation_time for p in self.parts]),
-            tuple(f for p in self.parts for f in p.result.failing),
-        )
-        first = self.parts[0]
-        return Judged(
-            cat([p.z for p in self.parts]),
-            cat([p.states for p in self.parts]),
-            cat([p.actions for p in self.parts]),
-            first.dt,
-            res,
-        )
+        bad = np.flatnonzero(~judged.satisfied)
+        if not bad.size:
+            return
+        self.violations += int(bad.size)
+        both = _subset(judged, bad) if self.kept is None else _joined(self.kept, _subset(judged, bad))
+        _, first_seen = np.unique(both.z, axis=0, return_index=True)  # a falsifier may revisit a scenario
+        distinct = np.sort(first_seen)
+        order = distinct[np.argsort(both.robustness[distinct], kind="stable")][: self.keep]
+        self.kept = _subset(both, order)
 
 
 @click.command("verify")
@@ -370,7 +380,7 @@ def verify(
     if method != "uniform" and budget > 0:  # the falsifier's package, before any rollout
         _check_method(method)
     folder = _prepare_out(out) if out is not None else None  # the input is sound: only now is anything made
-    pool = _Pool()
+    pool = _Pool(keep)
 
     def run(z: np.ndarray) -> Any:
         judged = evaluate(policy, spec, space, z, steps)
@@ -378,15 +388,16 @@ def verify(
         return judged
 
     sample_seq, search_seq = np.random.SeedSequence(seed).spawn(2)
-    z_all = space.sample(samples, np.random.default_rng(sample_seq))
-    rob = np.empty(samples)
-    sat = np.empty(samples, dtype=bool)
-    for a in range(0, samples, CHUNK):
-        j = run(z_all[a : a + CHUNK])
-        rob[a : a + CHUNK], sat[a : a + CHUNK] = j.robustness, j.satisfied
-    k = int(sat.sum())
+    rng = np.random.default_rng(sample_seq)
+    k = 0
+    worst_z, worst_rob = np.zeros(space.dim), np.inf
+    for a in range(0, samples, CHUNK):  # drawn batch by batch: the same points as one draw of all
+        j = run(space.sample(min(CHUNK, samples - a), rng))
+        k += int(j.satisfied.sum())
+        i = int(np.argmin(np.nan_to_num(j.robustness, nan=-np.inf)))
+        if a == 0 or j.robustness[i] < worst_rob:
+            worst_z, worst_rob = j.z[i], float(j.robustness[i])
     bound = clopper_pearson_lower(k, samples, confidence)
-    worst = int(np.argmin(np.nan_to_num(rob, nan=-np.inf)))
     sample_s = time.perf_counter() - started
     formula = spec.monitor_formula
     extra = []
@@ -399,7 +410,7 @@ def verify(
         f"sampled: {k}/{samples} rollouts satisfy {formula} ({drawn}); {k / samples:.1%} satisfied, "
         f"{confidence:.0%} lower bound {bound:.4f} (Clopper-Pearson, one-sided)"
     )
-    click.echo(f"least robust sample: robustness {rob[worst]:+.4g} at {_scenario_text(space, z_all[worst])}")
+    click.echo(f"least robust sample: robustness {worst_rob:+.4g} at {_scenario_text(space, worst_z)}")
 
     search = None
     if budget > 0:
@@ -415,7 +426,7 @@ def verify(
             budget,
             method,
             seed=int(search_seq.generate_state(1)[0]),
-            start=z_all[worst],
+            start=worst_z,
             stop=False,
         )
         search_s = time.perf_counter() - s0
@@ -434,18 +445,14 @@ def verify(
                     f"{search.rollouts} rollouts; the least robust: {where} (searched in {search_s:.1f} s)"
                 )
 
-    violated = pool.merged()
-    order = np.zeros(0, dtype=int)
-    if violated is not None:  # the least robust distinct scenarios (a falsifier may revisit one)
-        _, first_seen = np.unique(violated.z, axis=0, return_index=True)
-        distinct = np.sort(first_seen)
-        order = distinct[np.argsort(violated.robustness[distinct], kind="stable")][:keep]
-    falsified = violated is not None
+    violated = pool.kept
+    order = np.arange(0 if violated is None else violated.z.shape[0])
+    falsified = pool.violations > 0
     short = require is not None and bound < require
     status = 1 if falsified or short else 0
     reasons = []
     if falsified:
-        reasons.append(f"{violated.z.shape[0]} rollout{'s' if violated.z.shape[0] != 1 else ''} violated the spec")
+        reasons.append(f"{pool.violations} rollout{'s' if pool.violations != 1 else ''} violated the spec")
     if short:
         reasons.append(f"the lower bound {bound:.4f} is below --require {require:g}")
     if require is not None and not short:
@@ -480,7 +487,7 @@ def verify(
                 "fraction": k / samples,
                 "confidence": confidence,
                 "lower_bound": bound,
-                "least_robust": {"robustness": float(rob[worst]), **_scenario_record(space, z_all[worst])},
+                "least_robust": {"robustness": worst_rob, **_scenario_record(space, worst_z)},
                 "seconds": round(sample_s, 3),
             },
             "falsification": None
@@ -495,6 +502,7 @@ def verify(
                 "seconds": round(search_s, 3),
             },
             "require": require,
+            "violating_rollouts": pool.violations,
             "counterexamples": records,
             "exit_status": status,
         }

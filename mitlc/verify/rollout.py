@@ -176,12 +176,35 @@ def roll_out(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: 
     return states[rows], actions[rows]
 
 
+DIVERGED = "the plant diverged (a state left float64's range)"
+"""The failing part named for a rollout whose states stopped being finite numbers."""
+
+
 def judge(spec: Spec, states: np.ndarray, dt: float) -> MonitorResult:
-    """The monitor's verdict on each rollout, by the spec's ``check`` line, else its ``formula``."""
+    """The monitor's verdict on each rollout, by the spec's ``check`` line, else its ``formula``.
+
+    A rollout whose states stopped being finite (a plant that blew up under a varied parameter or
+    a disturbance) violates the spec with robustness ``-inf`` from its first such sample: a
+    counterexample, not an error that would stop the verification."""
+    finite = np.isfinite(states).all(axis=2)
+    whole = finite.all(axis=1)
     try:
-        return monitor(spec, states, dt, spec.monitor_formula)
-    except InputError as exc:  # the states the rollouts reached (a plant that blew up)
+        if whole.all():
+            return monitor(spec, states, dt, spec.monitor_formula)
+        part = monitor(spec, states[whole], dt, spec.monitor_formula) if whole.any() else None
+    except InputError as exc:  # what the monitor refuses in the states the rollouts reached
         raise exc.located("the rollouts") from None
+    B = states.shape[0]
+    satisfied = np.zeros(B, dtype=bool)
+    robustness = np.full(B, -np.inf)
+    violation = np.argmin(finite, axis=1) * float(dt)
+    failing: list[str | None] = [DIVERGED] * B
+    if part is not None:
+        rows = np.flatnonzero(whole)
+        satisfied[rows], robustness[rows], violation[rows] = part.satisfied, part.robustness, part.violation_time
+        for r, f in zip(rows, part.failing, strict=True):
+            failing[r] = f
+    return MonitorResult(satisfied, robustness, violation, tuple(failing))
 
 
 def evaluate(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: int) -> Judged:
