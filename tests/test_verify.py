@@ -348,3 +348,27 @@ def test_a_rollout_that_diverges_is_a_counterexample_not_an_error():
     assert res.satisfied.tolist() == [True, False, False]
     assert res.robustness[1] == res.robustness[2] == -np.inf and res.violation_time[1:].tolist() == [1.0, 2.0]
     assert res.failing[1:] == (DIVERGED, DIVERGED)
+
+
+def test_a_stable_baselines3_model_is_verified_through_its_policy(tmp_path):
+    """``--policy model.zip --spec SPEC``: the model acts through mitlc.gym.Sb3Policy, judged as any policy."""
+    pytest.importorskip("stable_baselines3", reason="needs Stable-Baselines3 and PyTorch: pip install 'mitlc[sb3]'")
+    gym = pytest.importorskip("gymnasium")
+    import torch
+    from stable_baselines3 import SAC
+
+    import mitlc.gym  # noqa: F401 - registers the environments
+
+    torch.set_num_threads(1)
+    spec = tmp_path / "p2.mitl"
+    spec.write_text(P2_SHORT)
+    env = gym.make("mitlc/Pendulum-v0", spec=str(spec), marking_obs="box", verdict="off")
+    SAC("MlpPolicy", env, seed=0, device="cpu", learning_starts=50, batch_size=32).learn(60).save(tmp_path / "m.zip")
+    out = tmp_path / "out"
+    res = run("verify", "--policy", tmp_path / "m.zip", "--spec", spec, "--samples", 8, "--budget", 4, "--out", out)
+    assert res.exit_code in (0, 1) and "/8 rollouts satisfy" in res.output, res.output
+    report = json.loads((out / "report.json").read_text())
+    assert report["sampling"]["samples"] == 8 and report["falsification"]["rollouts"] == 4
+    assert res.exit_code == (1 if report["violating_rollouts"] else 0)
+    no_spec = run("verify", "--policy", tmp_path / "m.zip")
+    assert no_spec.exit_code == 2 and no_spec.output.startswith("--spec: error: a Stable-Baselines3 model")

@@ -35,9 +35,12 @@ STARTS = "counterexamples.npz"
 SPEC_COPY = "spec.mitl"
 
 
-def _load_policy(folder: str) -> Any:
+def _load_policy(folder: str, spec_path: str | None) -> Any:
     """The policy a ``mitlc train`` folder holds (SACPN, HyRL, or ``--learner sac`` where
-    Stable-Baselines3 is installed), any failure one line naming ``--policy``."""
+    Stable-Baselines3 is installed), or a Stable-Baselines3 model ``.zip`` on ``--spec``; any
+    failure one line naming ``--policy``."""
+    if Path(folder).is_file():
+        return _load_sb3(folder, spec_path)
     load: Any
     try:
         from mitlc.gym import load_policy as load
@@ -47,6 +50,31 @@ def _load_policy(folder: str) -> Any:
         return load(folder)
     except MitlError as exc:
         raise exc.located(f"--policy {folder}") from None
+
+
+def _load_sb3(path: str, spec_path: str | None) -> Any:
+    """A Stable-Baselines3 model trained on a mitlc environment, as ``mitlc simulate`` loads it."""
+    if Path(path).suffix.lower() != ".zip":
+        raise InputError(
+            "a policy is a directory written by 'mitlc train' or a Stable-Baselines3 model .zip",
+            file=f"--policy {path}",
+        )
+    if spec_path is None:
+        raise InputError(
+            "a Stable-Baselines3 model does not record its spec: give the one it was trained on", file="--spec"
+        )
+    try:
+        from mitlc.gym import load_sb3
+    except ImportError:  # no Gymnasium
+        raise InputError(
+            "loading a Stable-Baselines3 model needs Stable-Baselines3: pip install 'mitlc[sb3]'", file=path
+        ) from None
+    from mitlc.spec.parse import load_spec
+
+    try:
+        return load_sb3(path, load_spec(spec_path))
+    except MitlError as exc:
+        raise exc.located(f"--policy {path}") from None
 
 
 def _steps(policy: Any, spec: Any) -> int:
@@ -266,9 +294,10 @@ class _Pool:
 @click.option(
     "--policy",
     "policy_dir",
-    type=click.Path(exists=True, file_okay=False),
+    type=click.Path(exists=True),
     required=True,
-    help="Directory written by 'mitlc train' (SACPN, HyRL, or --learner sac where Stable-Baselines3 is installed).",
+    help="Directory written by 'mitlc train' (SACPN, HyRL, or --learner sac where Stable-Baselines3 is "
+    "installed), or a Stable-Baselines3 model .zip trained on a mitlc environment (with --spec).",
 )
 @click.option(
     "--spec",
@@ -367,7 +396,7 @@ def verify(
     from mitlc.verify.rollout import check_batched_params, check_plant, evaluate
 
     started = time.perf_counter()
-    policy = _load_policy(policy_dir)
+    policy = _load_policy(policy_dir, spec_path)
     spec = _judging_spec(policy, spec_path)
     plant = spec.plant
     check_plant(plant)
