@@ -372,3 +372,20 @@ def test_a_stable_baselines3_model_is_verified_through_its_policy(tmp_path):
     assert res.exit_code == (1 if report["violating_rollouts"] else 0)
     no_spec = run("verify", "--policy", tmp_path / "m.zip")
     assert no_spec.exit_code == 2 and no_spec.output.startswith("--spec: error: a Stable-Baselines3 model")
+
+
+def test_verify_policy_counts_bounds_and_keeps_the_least_robust():
+    from mitlc.verify import verify_policy
+
+    space = SearchSpace.of(SPEC, runs=3)
+    a = verify_policy(OneBadRun(), SPEC, space, STEPS, samples=90, budget=30, method="uniform", seed=4, keep=5)
+    b = verify_policy(OneBadRun(), SPEC, space, STEPS, samples=90, budget=30, method="uniform", seed=4, keep=5)
+    s = a.sampled
+    assert s.lower_bound == clopper_pearson_lower(s.satisfied, 90) and 0 < s.satisfied < 90
+    assert a.search is not None and a.search.rollouts == 30
+    assert a.violations == (90 - s.satisfied) + int((~a.search.satisfied).sum())
+    cex = a.counterexamples
+    assert cex is not None and cex.z.shape[0] == 5 and len({tuple(z) for z in cex.z}) == 5
+    assert np.all(np.diff(cex.robustness) >= 0) and not cex.satisfied.any()
+    assert np.array_equal(cex.z, b.counterexamples.z) and s.satisfied == b.sampled.satisfied
+    assert cex.robustness[0] <= min(s.least_robustness, a.search.robustness.min())

@@ -24,11 +24,7 @@ import numpy as np
 from mitlc.cli.common import handle_errors, plant_file_option
 from mitlc.errors import InputError, MitlError
 
-__all__ = ["verify", "CHUNK"]
-
-CHUNK = 1000
-"""Sampled scenarios rolled out per batch along the run axis (the memory of one batch:
-``CHUNK x (steps + 1) x n`` floats)."""
+__all__ = ["verify"]
 
 REPORT = "report.json"
 STARTS = "counterexamples.npz"
@@ -242,54 +238,6 @@ def _check_method(method: str) -> None:
         )
 
 
-def _subset(judged: Any, rows: np.ndarray) -> Any:
-    """The rollouts ``rows`` of a :class:`~mitlc.verify.rollout.Judged`."""
-    from mitlc.monitor.offline import MonitorResult
-    from mitlc.verify.rollout import Judged
-
-    r = judged.result
-    res = MonitorResult(
-        r.satisfied[rows], r.robustness[rows], r.violation_time[rows], tuple(r.failing[i] for i in rows)
-    )
-    return Judged(judged.z[rows], judged.states[rows], judged.actions[rows], judged.dt, res)
-
-
-def _joined(a: Any, b: Any) -> Any:
-    from mitlc.monitor.offline import MonitorResult
-    from mitlc.verify.rollout import Judged
-
-    cat = np.concatenate
-    ra, rb = a.result, b.result
-    res = MonitorResult(
-        cat([ra.satisfied, rb.satisfied]),
-        cat([ra.robustness, rb.robustness]),
-        cat([ra.violation_time, rb.violation_time]),
-        ra.failing + rb.failing,
-    )
-    return Judged(cat([a.z, b.z]), cat([a.states, b.states]), cat([a.actions, b.actions]), a.dt, res)
-
-
-class _Pool:
-    """The violating rollouts of sampling and falsification: how many, and the ``keep`` least robust
-    distinct scenarios among them (least robust first), kept as they come (memory: ``keep`` rollouts)."""
-
-    def __init__(self, keep: int) -> None:
-        self.keep = keep
-        self.violations = 0
-        self.kept: Any = None
-
-    def add(self, judged: Any) -> None:
-        bad = np.flatnonzero(~judged.satisfied)
-        if not bad.size:
-            return
-        self.violations += int(bad.size)
-        both = _subset(judged, bad) if self.kept is None else _joined(self.kept, _subset(judged, bad))
-        _, first_seen = np.unique(both.z, axis=0, return_index=True)  # a falsifier may revisit a scenario
-        distinct = np.sort(first_seen)
-        order = distinct[np.argsort(both.robustness[distinct], kind="stable")][: self.keep]
-        self.kept = _subset(both, order)
-
-
 @click.command("verify")
 @click.option(
     "--policy",
@@ -389,45 +337,25 @@ def verify(
     exact one-sided Clopper-Pearson lower bound; then --budget rollouts search for the least robust
     scenario. Exit 0: nothing violated and the bound meets --require; 1: a counterexample, or the
     bound falls short; 2: bad input."""
-    import time
-
     from mitlc.fileio import atomic_write, json_text
-    from mitlc.verify import SearchSpace, clopper_pearson_lower, falsify, parse_disturb, parse_vary
-    from mitlc.verify.rollout import check_batched_params, check_plant, evaluate
+    from mitlc.verify import SearchSpace, parse_disturb, parse_vary
+    from mitlc.verify.rollout import base_params, check_batched_params, check_plant
+    from mitlc.verify.run import verify_policy
 
-    started = time.perf_counter()
     policy = _load_policy(policy_dir, spec_path)
     spec = _judging_spec(policy, spec_path)
     plant = spec.plant
     check_plant(plant)
     runs = int(getattr(policy, "runs", 1))
     space = SearchSpace.of(spec, parse_vary(vary, spec), parse_disturb(disturb, spec), pieces, runs)
-    from mitlc.verify.rollout import base_params
-
     check_batched_params(plant, base_params(spec, policy.dt), space.vary)
     steps = _steps(policy, spec)
     if method != "uniform" and budget > 0:  # the falsifier's package, before any rollout
         _check_method(method)
     folder = _prepare_out(out) if out is not None else None  # the input is sound: only now is anything made
-    pool = _Pool(keep)
-
-    def run(z: np.ndarray) -> Any:
-        judged = evaluate(policy, spec, space, z, steps)
-        pool.add(judged)
-        return judged
-
-    sample_seq, search_seq = np.random.SeedSequence(seed).spawn(2)
-    rng = np.random.default_rng(sample_seq)
-    k = 0
-    worst_z, worst_rob = np.zeros(space.dim), np.inf
-    for a in range(0, samples, CHUNK):  # drawn batch by batch: the same points as one draw of all
-        j = run(space.sample(min(CHUNK, samples - a), rng))
-        k += int(j.satisfied.sum())
-        i = int(np.argmin(np.nan_to_num(j.robustness, nan=-np.inf)))
-        if a == 0 or j.robustness[i] < worst_rob:
-            worst_z, worst_rob = j.z[i], float(j.robustness[i])
-    bound = clopper_pearson_lower(k, samples, confidence)
-    sample_s = time.perf_counter() - started
+    outcome = verify_policy(policy, spec, space, steps, samples, budget, method, seed, keep, confidence)
+    sampled, search = outcome.sampled, outcome.search
+    k, bound = sampled.satisfied, sampled.lower_bound
     formula = spec.monitor_formula
     extra = []
     if space.vary:
@@ -439,49 +367,33 @@ def verify(
         f"sampled: {k}/{samples} rollouts satisfy {formula} ({drawn}); {k / samples:.1%} satisfied, "
         f"{confidence:.0%} lower bound {bound:.4f} (Clopper-Pearson, one-sided)"
     )
-    click.echo(f"least robust sample: robustness {worst_rob:+.4g} at {_scenario_text(space, worst_z)}")
+    click.echo(
+        f"least robust sample: robustness {sampled.least_robustness:+.4g} at {_scenario_text(space, sampled.least_z)}"
+    )
+    if search is not None and search.rollouts:
+        least = int(np.argmin(np.nan_to_num(search.robustness, nan=-np.inf)))
+        where = f"robustness {search.robustness[least]:+.4g} at {_scenario_text(space, search.z[least])}"
+        took = f"(searched in {outcome.search_seconds:.1f} s)"
+        if search.found:
+            click.echo(
+                f"falsified ({method}, from the least robust sample): the first counterexample after "
+                f"{search.first} of {search.rollouts} rollouts; the least robust: {where} {took}"
+            )
+        else:
+            click.echo(
+                f"not falsified ({method}, from the least robust sample): no counterexample in "
+                f"{search.rollouts} rollouts; the least robust: {where} {took}"
+            )
 
-    search = None
-    if budget > 0:
-        s0 = time.perf_counter()
-
-        def objective(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            j = run(z)
-            return j.robustness, j.satisfied
-
-        search = falsify(  # from the least robust sample, through the whole budget: the least robust rollout
-            objective,
-            space.dim,
-            budget,
-            method,
-            seed=int(search_seq.generate_state(1)[0]),
-            start=worst_z,
-            stop=False,
-        )
-        search_s = time.perf_counter() - s0
-        if search.rollouts:
-            least = int(np.argmin(np.nan_to_num(search.robustness, nan=-np.inf)))
-            where = f"robustness {search.robustness[least]:+.4g} at {_scenario_text(space, search.z[least])}"
-            if search.found:
-                click.echo(
-                    f"falsified ({method}, from the least robust sample): the first counterexample after "
-                    f"{search.first} of {search.rollouts} rollouts; the least robust: {where} "
-                    f"(searched in {search_s:.1f} s)"
-                )
-            else:
-                click.echo(
-                    f"not falsified ({method}, from the least robust sample): no counterexample in "
-                    f"{search.rollouts} rollouts; the least robust: {where} (searched in {search_s:.1f} s)"
-                )
-
-    violated = pool.kept
+    violated = outcome.counterexamples
     order = np.arange(0 if violated is None else violated.z.shape[0])
-    falsified = pool.violations > 0
+    falsified = outcome.violations > 0
     short = require is not None and bound < require
     status = 1 if falsified or short else 0
     reasons = []
     if falsified:
-        reasons.append(f"{pool.violations} rollout{'s' if pool.violations != 1 else ''} violated the spec")
+        n = outcome.violations
+        reasons.append(f"{n} rollout{'s' if n != 1 else ''} violated the spec")
     if short:
         reasons.append(f"the lower bound {bound:.4f} is below --require {require:g}")
     if require is not None and not short:
@@ -516,8 +428,11 @@ def verify(
                 "fraction": k / samples,
                 "confidence": confidence,
                 "lower_bound": bound,
-                "least_robust": {"robustness": worst_rob, **_scenario_record(space, worst_z)},
-                "seconds": round(sample_s, 3),
+                "least_robust": {
+                    "robustness": sampled.least_robustness,
+                    **_scenario_record(space, sampled.least_z),
+                },
+                "seconds": round(sampled.seconds, 3),
             },
             "falsification": None
             if search is None
@@ -528,10 +443,10 @@ def verify(
                 "found": search.found,
                 "first_counterexample_after": search.first,
                 "least_robustness": float(np.min(search.robustness)) if search.rollouts else None,
-                "seconds": round(search_s, 3),
+                "seconds": round(outcome.search_seconds, 3),
             },
             "require": require,
-            "violating_rollouts": pool.violations,
+            "violating_rollouts": outcome.violations,
             "counterexamples": records,
             "exit_status": status,
         }

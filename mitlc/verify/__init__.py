@@ -14,8 +14,9 @@ is rolled out at once along the plant's run axis.
 :mod:`~mitlc.verify.space` maps points of the unit cube to starts, parameters and
 disturbances; :mod:`~mitlc.verify.rollout` rolls them out and judges them;
 :mod:`~mitlc.verify.stats` holds the bound; :mod:`~mitlc.verify.falsify` the search;
-:mod:`~mitlc.verify.plots` the counterexample figure. ``mitlc verify`` (:mod:`mitlc.cli.verify`)
-writes the files.
+:mod:`~mitlc.verify.run` does both in order (:func:`~mitlc.verify.run.verify_policy`);
+:mod:`~mitlc.verify.plots` draws a counterexample. ``mitlc verify`` (:mod:`mitlc.cli.verify`)
+loads the policy, prints and writes the files.
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
 :mod:`mitlc.spec`, :mod:`mitlc.monitor`.
@@ -23,12 +24,14 @@ May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:
 
 from mitlc.verify.falsify import METHODS, Search, falsify
 from mitlc.verify.rollout import Judged, judge, roll_out
+from mitlc.verify.run import Outcome, verify_policy
 from mitlc.verify.space import SearchSpace, parse_disturb, parse_vary
 from mitlc.verify.stats import clopper_pearson_lower
 
 __all__ = [
     "METHODS",
     "Judged",
+    "Outcome",
     "Search",
     "SearchSpace",
     "clopper_pearson_lower",
@@ -37,4 +40,5 @@ __all__ = [
     "parse_disturb",
     "parse_vary",
     "roll_out",
+    "verify_policy",
 ]
