@@ -137,8 +137,9 @@ def test_cma_respects_the_budget():
 def test_a_batch_with_varied_parameters_and_disturbances_equals_rollouts_one_by_one():
     """Scenarios rolled out together along the run axis, each with its own mass and disturbance,
     give the states each gives alone (its parameters as plain numbers)."""
-    space = SearchSpace.of(SPEC, parse_vary(["M=0.3:0.9", "B=0:0.2"], SPEC), parse_disturb(["u=3"], SPEC), pieces=2)
-    assert space.names == ("q", "qdot", "M", "B", "u[0]", "u[1]")
+    disturb = parse_disturb(["u=3", "qdot=2"], SPEC)
+    space = SearchSpace.of(SPEC, parse_vary(["M=0.3:0.9", "B=0:0.2"], SPEC), disturb, pieces=2)
+    assert space.names == ("q", "qdot", "M", "B", "u[0]", "u[1]", "qdot[0]", "qdot[1]")
     z = np.random.default_rng(2).random((4, space.dim))
     together, acts = roll_out(Planted(), SPEC, space, z, 40)
     for i in range(4):
@@ -147,6 +148,9 @@ def test_a_batch_with_varied_parameters_and_disturbances_equals_rollouts_one_by_
         alone_spec = parse_spec(SPEC.source.replace("plant mass-damper", plant_line))
         alone_space = SearchSpace.of(alone_spec, (), space.disturb, pieces=2)  # the parameters as numbers
         alone, _ = roll_out(Planted(), alone_spec, alone_space, np.r_[z[i, :2], z[i, 4:]][None, :], 40)
+        assert not np.array_equal(
+            alone[0], roll_out(Planted(), alone_spec, SearchSpace.of(alone_spec), z[i : i + 1, :2], 40)[0][0]
+        )
         np.testing.assert_allclose(together[i], alone[0], rtol=1e-12, atol=1e-12)
     d = space.decode(z).disturbance[:, :, 0]
     assert np.all(np.abs(d) <= 3) and np.all(np.abs(acts) <= 10)  # u_max = 10
@@ -231,7 +235,8 @@ def test_exit_0_when_satisfied_and_1_when_the_bound_falls_short(trained, tmp_pat
         (("--vary", "M=0.2:0.1"), "--vary: error: 'M=0.2:0.1': an empty range"),
         (("--vary", "M=0.2"), "--vary: error: 'M=0.2': expected NAME=LO:HI"),
         (("--vary", "dt=0.01:0.02"), "--vary: error: 'dt' cannot vary"),
-        (("--disturb", "w=1"), "--disturb: error: 'w' is not an input of plant 'pendulum'"),
+        (("--disturb", "w=1"), "--disturb: error: 'w' is neither an input nor a state variable of plant 'pendulum'"),
+        (("--disturb", "u=-1"), "--disturb: error: 'u=-1': a bound is 0 or more"),
         (("--samples", 0), "--samples: error: 0 is not in the range"),
         (("--spec", "mass_damper/overshoot"), "--spec mass_damper/overshoot: error: the policy was trained for plant"),
         (("--method", "nelder"), "--method: error:"),
@@ -389,3 +394,23 @@ def test_verify_policy_counts_bounds_and_keeps_the_least_robust():
     assert np.all(np.diff(cex.robustness) >= 0) and not cex.satisfied.any()
     assert np.array_equal(cex.z, b.counterexamples.z) and s.satisfied == b.sampled.satisfied
     assert cex.robustness[0] <= min(s.least_robustness, a.search.robustness.min())
+
+
+class Idle(Planted):
+    """No input at all."""
+
+    def act(self, x, gain):
+        return np.zeros(x.shape[0])
+
+
+def test_a_state_disturbance_moves_the_state_by_its_rate():
+    """With no input and no velocity, a disturbance d on q's rate moves q by d per second, and by -d
+    in the second half of the horizon when the second piece is -d."""
+    spec = parse_spec(SPEC.source.replace("qdot in [-1, 1]", "qdot = 0").replace("q in [-1, 1]", "q = 0"))
+    space = SearchSpace.of(spec, (), parse_disturb(["q=0.5"], spec), pieces=2)
+    assert space.names == ("q[0]", "q[1]")
+    states, _ = roll_out(Idle(), spec, space, np.array([[1.0, 0.0]]), 40)  # d = +0.5, then -0.5
+    t = np.arange(41) * 0.03
+    expected = np.where(t <= 0.6, 0.5 * t, 0.5 * 0.6 - 0.5 * (t - 0.6))
+    np.testing.assert_allclose(states[0, :, 0], expected, atol=1e-12)
+    assert np.all(states[0, :, 1] == 0)

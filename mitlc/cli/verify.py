@@ -122,8 +122,8 @@ def _scenario_text(space: Any, z: np.ndarray) -> str:
     parts += [f"{space.state_names[i]}={sc.x0[0, i]:.4g}" for i in space.free]
     parts += [f"{n}={sc.params[n][0]:.4g}" for n, _, _ in space.vary]
     for name, _ in space.disturb:
-        j = space.input_names.index(name)
-        parts += [f"d_{name}[{p}]={sc.disturbance[0, p, j]:+.4g}" for p in range(space.pieces)]
+        d = space.disturbance_of(sc, name)[0]
+        parts += [f"d_{name}[{p}]={d[p]:+.4g}" for p in range(space.pieces)]
     return ", ".join(parts) if parts else "the one scenario (one start, one run)"
 
 
@@ -133,9 +133,7 @@ def _scenario_record(space: Any, z: np.ndarray) -> dict:
         "run": int(sc.run[0]),
         "start": {n: float(sc.x0[0, i]) for i, n in enumerate(space.state_names)},
         "params": {n: float(v[0]) for n, v in sc.params.items()},
-        "disturbance": {
-            n: [float(v) for v in sc.disturbance[0, :, space.input_names.index(n)]] for n, _ in space.disturb
-        },
+        "disturbance": {n: [float(v) for v in space.disturbance_of(sc, n)[0]] for n, _ in space.disturb},
     }
 
 
@@ -183,7 +181,7 @@ def _write_counterexamples(folder: Path, spec: Any, space: Any, judged: Any, ord
         extra.update({f"start_{n}": np.array(sc.x0[k, j]) for j, n in enumerate(space.state_names)})
         extra["run"] = np.array(sc.run[k])
         for n, _ in space.disturb:
-            extra[f"disturbance_{n}"] = sc.disturbance[k, :, space.input_names.index(n)]
+            extra[f"disturbance_{n}"] = space.disturbance_of(sc, n)[k]
         columns = {n: judged.states[i, :, j] for j, n in enumerate(plant.state_names)}
         write_trace(folder / f"{name}.npz", t, columns, extra)
         res = judged.result
@@ -220,8 +218,9 @@ def _write_counterexamples(folder: Path, spec: Any, space: Any, judged: Any, ord
     for n, _, _ in space.vary:
         arrays[f"param_{n}"] = sc_all.params[n] if sc_all is not None else np.zeros(0)
     for n, _ in space.disturb:
-        j = space.input_names.index(n)
-        arrays[f"disturbance_{n}"] = sc_all.disturbance[:, :, j] if sc_all is not None else np.zeros((0, space.pieces))
+        arrays[f"disturbance_{n}"] = (
+            space.disturbance_of(sc_all, n) if sc_all is not None else np.zeros((0, space.pieces))
+        )
     save_npz(folder / STARTS, arrays)
     return records
 
@@ -286,9 +285,9 @@ def _check_method(method: str) -> None:
 @click.option(
     "--disturb",
     multiple=True,
-    metavar="INPUT=EPS",
-    help="Add a disturbance in [-EPS, EPS] to input INPUT (u, or a declared input's name), constant over each "
-    "of --pieces spans of the horizon (repeat for more inputs).",
+    metavar="NAME=EPS",
+    help="Add a disturbance in [-EPS, EPS] to input NAME (u, or a declared input's name), or to the rate of "
+    "state variable NAME, constant over each of --pieces spans of the horizon (repeat for more).",
 )
 @click.option(
     "--pieces",
@@ -361,7 +360,7 @@ def verify(
     if space.vary:
         extra.append("parameters " + ", ".join(f"{n} in [{lo:g}, {hi:g}]" for n, lo, hi in space.vary))
     if space.disturb:
-        extra.append("input disturbance " + ", ".join(f"|d_{n}| <= {e:g}" for n, e in space.disturb))
+        extra.append("disturbance " + ", ".join(f"|d_{n}| <= {e:g}" for n, e in space.disturb))
     drawn = "scenarios drawn from the init box" + (f" with {'; '.join(extra)}" if extra else "") + f", seed {seed}"
     click.echo(
         f"sampled: {k}/{samples} rollouts satisfy {formula} ({drawn}); {k / samples:.1%} satisfied, "

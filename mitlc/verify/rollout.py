@@ -17,7 +17,7 @@ import numpy as np
 
 from mitlc.errors import InputError
 from mitlc.monitor.offline import MonitorResult, monitor
-from mitlc.plants.base import Plant, make_integrator
+from mitlc.plants.base import Plant, make_integrator, wrap_angle
 from mitlc.spec.model import Spec
 from mitlc.verify.space import SearchSpace
 
@@ -119,6 +119,15 @@ def _stepper(plant: Plant, params: Mapping[str, Any], varied: bool) -> Callable[
     return advance
 
 
+def _wrap_and_clip(plant: Plant, x: np.ndarray) -> None:
+    """What :meth:`Plant.step` does after integrating: wrap the angles, clip the bounded variables."""
+    for i, v in enumerate(plant.state):
+        if v.periodic:
+            x[:, i] = wrap_angle(x[:, i])
+        elif v.name in plant.clip:
+            x[:, i] = np.clip(x[:, i], v.lo, v.hi)
+
+
 def rows_for(run: np.ndarray, runs: int) -> tuple[np.ndarray, int]:
     """Where each scenario goes in the batch so that it acts with its run: a policy acts on row ``b``
     with run ``b % runs``, so scenario ``i`` goes to row ``run[i] + runs * k`` (its ``k``-th of that
@@ -156,8 +165,9 @@ def roll_out(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: 
     else:
         box = plant.input_box(params)
         lo, hi = box[0], box[1]
-    disturbance = sc.disturbance[fill]
-    disturbed = bool(np.any(disturbance))
+    disturbance, drift = sc.disturbance[fill], sc.state_disturbance[fill]
+    disturbed, drifting = bool(np.any(disturbance)), bool(np.any(drift))
+    dt = float(params["dt"])
     x = np.array(sc.x0[fill], dtype=float)
     states = np.empty((B, steps + 1, x.shape[1]))
     actions = np.empty((B, steps) if m == 1 else (B, steps, m))
@@ -171,6 +181,9 @@ def roll_out(policy: Any, spec: Spec, space: SearchSpace, z: np.ndarray, steps: 
             u = u + (d[:, 0] if m == 1 else d)
         u = np.clip(u, lo, hi)
         advance(x, u)
+        if drifting:  # a state disturbance: the rates plus d over the step, then the plant's own wraps and clips
+            x += drift[:, min(pieces - 1, k * pieces // steps)] * dt
+            _wrap_and_clip(plant, x)
         state = policy.step(state, x.copy())
         states[:, k + 1], actions[:, k] = x, u
     return states[rows], actions[rows]

@@ -3,8 +3,9 @@
 A :class:`SearchSpace` maps a point ``z`` of the unit cube ``[0, 1]^dim`` to one scenario:
 an initial state in the spec's ``init`` box (a fixed variable, ``qdot = 0``, takes no
 coordinate), a value for each varied plant parameter (``--vary M=0.4:0.6``), and a bounded
-disturbance added to each disturbed input (``--disturb u=0.5``: ``|d| <= 0.5``), constant
-over each of ``pieces`` equal spans of the horizon. Uniform ``z`` is uniform sampling of
+disturbance added to each disturbed input (``--disturb u=0.5``: ``|d| <= 0.5``) or to the rate
+of each disturbed state variable (``--disturb qdot=2``: ``qdot' + d``), constant over each of
+``pieces`` equal spans of the horizon. Uniform ``z`` is uniform sampling of
 the scenarios; an optimiser searches the same cube.
 
 >>> import numpy as np
@@ -77,21 +78,25 @@ def parse_vary(items: Sequence[str], spec: Spec) -> tuple[tuple[str, float, floa
 
 
 def parse_disturb(items: Sequence[str], spec: Spec) -> tuple[tuple[str, float], ...]:
-    """``INPUT=EPS`` items of ``--disturb`` as ``(input, eps)``: the input ``INPUT`` (``u``, or a
-    declared input's name) is driven with the policy's value plus a disturbance in ``[-EPS, EPS]``."""
+    """``NAME=EPS`` items of ``--disturb`` as ``(name, eps)``: an input ``NAME`` (``u``, or a declared
+    input's name) is driven with the policy's value plus a disturbance in ``[-EPS, EPS]``; a state
+    variable ``NAME`` moves with its rate plus one (an input's name wins where both have it)."""
     plant = spec.plant
     if plant is None:
         raise InputError("the spec names no plant: no input to disturb", file="--disturb")
     names = plant.input_names
+    states = plant.state_names
     out: list[tuple[str, float]] = []
     for item in items:
         name, eq, eps_text = item.partition("=")
         name = name.strip()
         if not eq:
-            raise InputError(f"'{item}': expected INPUT=EPS, e.g. {names[0]}=0.1", file="--disturb")
-        if name not in names:
+            raise InputError(f"'{item}': expected NAME=EPS, e.g. {names[0]}=0.1", file="--disturb")
+        if name not in names and name not in states:
             raise InputError(
-                f"'{name}' is not an input of plant '{plant.name}' (its inputs: {', '.join(names)})", file="--disturb"
+                f"'{name}' is neither an input nor a state variable of plant '{plant.name}' (inputs: "
+                f"{', '.join(names)}; state: {', '.join(states)})",
+                file="--disturb",
             )
         if any(v[0] == name for v in out):
             raise InputError(f"'{name}' is given twice", file="--disturb")
@@ -105,12 +110,13 @@ def parse_disturb(items: Sequence[str], spec: Spec) -> tuple[tuple[str, float], 
 @dataclass(frozen=True)
 class Scenarios:
     """``B`` scenarios: starts ``x0 (B, n)``, varied parameters (name -> ``(B,)``), the
-    disturbance ``(B, pieces, m)`` added to the ``m`` inputs (zero where not disturbed) and
-    the policy's run each is rolled out with."""
+    disturbance ``(B, pieces, m)`` added to the ``m`` inputs and ``(B, pieces, n)`` to the state's
+    rates (zero where not disturbed), and the policy's run each is rolled out with."""
 
     x0: np.ndarray
     params: Mapping[str, np.ndarray]
     disturbance: np.ndarray
+    state_disturbance: np.ndarray
     run: np.ndarray
     """``(B,)``: the trained run of the policy each scenario is rolled out with."""
 
@@ -128,7 +134,7 @@ class SearchSpace:
     """``(parameter, lo, hi)`` per varied plant parameter."""
     input_names: tuple[str, ...] = ("u",)
     disturb: tuple[tuple[str, float], ...] = ()
-    """``(input, eps)`` per disturbed input: ``|d| <= eps``."""
+    """``(name, eps)`` per disturbed input or state variable: ``|d| <= eps``."""
     pieces: int = 1
     """A disturbance is constant over each of ``pieces`` equal spans of the horizon."""
     runs: int = 1
@@ -167,7 +173,7 @@ class SearchSpace:
     @property
     def names(self) -> tuple[str, ...]:
         """A name per coordinate: ``run`` (with several runs), the free state variables, the varied
-        parameters, then ``INPUT[piece]`` per disturbed input and piece."""
+        parameters, then ``NAME[piece]`` per disturbed input or state variable and piece."""
         dist = tuple(f"{n}[{j}]" for n, _ in self.disturb for j in range(self.pieces))
         run = ("run",) if self.runs > 1 else ()
         return run + tuple(self.state_names[i] for i in self.free) + tuple(v[0] for v in self.vary) + dist
@@ -201,8 +207,18 @@ class SearchSpace:
             params[name] = a + (b - a) * z[:, c]
             c += 1
         dist = np.zeros((B, self.pieces, len(self.input_names)))
+        state_dist = np.zeros((B, self.pieces, len(self.state_names)))
         for name, eps in self.disturb:
-            j = self.input_names.index(name)
-            dist[:, :, j] = eps * (2.0 * z[:, c : c + self.pieces] - 1.0)
+            d = eps * (2.0 * z[:, c : c + self.pieces] - 1.0)
+            if name in self.input_names:
+                dist[:, :, self.input_names.index(name)] = d
+            else:
+                state_dist[:, :, self.state_names.index(name)] = d
             c += self.pieces
-        return Scenarios(x0, params, dist, run)
+        return Scenarios(x0, params, dist, state_dist, run)
+
+    def disturbance_of(self, scenarios: Scenarios, name: str) -> np.ndarray:
+        """``(B, pieces)``: the disturbance of the input or state variable ``name`` in each scenario."""
+        if name in self.input_names:
+            return scenarios.disturbance[:, :, self.input_names.index(name)]
+        return scenarios.state_disturbance[:, :, self.state_names.index(name)]
