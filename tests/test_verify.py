@@ -179,7 +179,9 @@ def trained(tmp_path_factory):
     folder = tmp_path_factory.mktemp("verify")
     spec = folder / "p2.mitl"
     spec.write_text(P2_SHORT)
-    res = run("train", "--spec", spec, "--runs", 2, "--trials", 2, "--out", folder / "pol", "-q", "--no-plots")
+    res = run(
+        "train", "--spec", spec, "--runs", 2, "--trials", 2, "--out", folder / "pol", "-q", "--no-plots", "--no-race"
+    )
     assert res.exit_code == 0, res.output
     return folder
 
