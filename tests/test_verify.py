@@ -35,8 +35,9 @@ def test_clopper_pearson_closed_forms(n):
     """No failures: the bound solves p^n = alpha; 59 successes of 59 are the classic 95 % / 5 % case."""
     assert clopper_pearson_lower(n, n) == pytest.approx(0.05 ** (1 / n), rel=1e-14)
     assert clopper_pearson_lower(0, n) == 0.0
-    if n == 59:
+    if n == 59:  # docs/verify.md: 59 of 59 show 0.95; --require 0.99 needs 299 of 299
         assert clopper_pearson_lower(59, 59) > 0.95 > clopper_pearson_lower(58, 58)
+        assert clopper_pearson_lower(299, 299) >= 0.99 > clopper_pearson_lower(298, 298)
 
 
 @pytest.mark.parametrize("k, n", [(3, 10), (7, 10), (20, 40)])
