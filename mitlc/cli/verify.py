@@ -242,6 +242,7 @@ def _check_method(method: str) -> None:
     "--policy",
     "policy_dir",
     type=click.Path(exists=True),
+    metavar="DIR|MODEL.zip",
     required=True,
     help="Directory written by 'mitlc train' (SACPN, HyRL, or --learner sac where Stable-Baselines3 is "
     "installed), or a Stable-Baselines3 model .zip trained on a mitlc environment (with --spec).",
@@ -309,7 +310,13 @@ def _check_method(method: str) -> None:
     show_default=True,
     help="Confidence of the one-sided Clopper-Pearson lower bound.",
 )
-@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True, help="Seed of both searches.")
+@click.option(
+    "--seed",
+    type=click.IntRange(0, 2**63 - 1),
+    default=0,
+    show_default=True,
+    help="Seed of the samples and of the falsifier.",
+)
 @click.option(
     "--keep",
     type=click.IntRange(0, 1000),
@@ -321,6 +328,7 @@ def _check_method(method: str) -> None:
     "--out",
     type=click.Path(),
     default=None,
+    metavar="DIR",
     help="Folder for report.json, counterexamples.npz, the counterexamples' traces (cex_NNN.npz, read by "
     "'mitlc check OUT/spec.mitl OUT/cex_000.npz') and figures; without it nothing is written.",
 )
