@@ -417,3 +417,24 @@ def test_a_state_disturbance_moves_the_state_by_its_rate():
     expected = np.where(t <= 0.6, 0.5 * t, 0.5 * 0.6 - 0.5 * (t - 0.6))
     np.testing.assert_allclose(states[0, :, 0], expected, atol=1e-12)
     assert np.all(states[0, :, 1] == 0)
+
+
+def test_a_hyrl_policy_is_verified_by_a_spec_with_a_formula(tmp_path):
+    """A HyRL training (classical criteria, no formula) needs --spec with a formula on its plant."""
+    res = run("train", "--spec", "mass_damper/overshoot", "--runs", 2, "--trials", 5, "--out", tmp_path / "hy", "-q")
+    assert res.exit_code == 0, res.output
+    alone = run("verify", "--policy", tmp_path / "hy", "--samples", 5)
+    assert alone.exit_code == 2 and "no 'formula' nor 'check' line" in alone.output
+    assert len(alone.output.strip().splitlines()) == 1
+    spec = tmp_path / "near.mitl"
+    spec.write_text(
+        "plant mass-damper\ninit q in [-1, 1], qdot = 0\nhorizon 5\nprop near = abs(q) < 0.2\nformula F[0,4] G near\n"
+    )
+    out = tmp_path / "out"
+    res = run("verify", "--policy", tmp_path / "hy", "--spec", spec, "--samples", 20, "--budget", 10, "--out", out)
+    report = json.loads((out / "report.json").read_text())
+    assert res.exit_code == report["exit_status"] == (1 if report["violating_rollouts"] else 0), res.output
+    assert report["space"]["coordinates"] == ["run", "q"] and report["steps"] == round(5 / 0.03)
+    assert report["counterexamples"]  # five trials are far from enough: it fails from some starts
+    for c in report["counterexamples"]:
+        assert run("check", out / "spec.mitl", out / c["trace"]).exit_code == 1
