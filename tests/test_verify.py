@@ -438,3 +438,28 @@ def test_a_hyrl_policy_is_verified_by_a_spec_with_a_formula(tmp_path):
     assert report["counterexamples"]  # five trials are far from enough: it fails from some starts
     for c in report["counterexamples"]:
         assert run("check", out / "spec.mitl", out / c["trace"]).exit_code == 1
+
+
+def test_a_plant_that_reads_a_parameter_as_one_number_is_refused_for_vary():
+    from mitlc.errors import InputError
+    from mitlc.plants import Plant, StateVar
+    from mitlc.verify.rollout import check_batched_params
+
+    def scalar(x, u, p):  # float(): one number for every copy
+        return np.stack([x[:, 1], (u - float(p["c"]) * x[:, 1]) / p["m"]], axis=1)
+
+    def first(x, u, p):  # silently the first copy's value
+        c = np.atleast_1d(p["c"])[0]
+        return np.stack([x[:, 1], (u - c * x[:, 1]) / p["m"]], axis=1)
+
+    for dynamics, why in ((scalar, "cannot step copies with a parameter each"), (first, "differently")):
+        plant = Plant(
+            "probe",
+            (StateVar("q", -1, 1), StateVar("qdot", -1, 1)),
+            {"m": 1.0, "c": 0.1, "u_max": 1.0, "dt": 0.1},
+            dynamics,
+        )
+        check_batched_params(plant, plant.params(), (("m", 0.5, 2.0),))  # m is read per copy: fine
+        with pytest.raises(InputError, match=why) as err:
+            check_batched_params(plant, plant.params(), (("c", 0.0, 1.0),))
+        assert err.value.file == "--vary"

@@ -77,13 +77,17 @@ def check_plant(plant: Plant) -> None:
 
 
 def check_batched_params(plant: Plant, params: Mapping[str, float], vary: tuple[tuple[str, float, float], ...]) -> None:
-    """One step of two copies with the varied parameters at their ends, together and one by one:
-    a plant whose ``dynamics`` does not take a parameter per copy fails here, as one line naming
-    ``--vary``, not deep in a rollout."""
+    """One step of two copies with the varied parameters at their ends, together and one by one,
+    from a state and input off the middle of their bounds: a plant whose ``dynamics`` does not take
+    a parameter per copy fails here, as one line naming ``--vary``, not deep in a rollout."""
     if not vary:
         return
-    mid = np.array([[0.5 * (v.lo + v.hi) for v in plant.state]] * 2)
-    u = np.zeros(2) if plant.n_inputs == 1 else np.zeros((2, plant.n_inputs))
+    # off the middle of every bound (at rest, a damping parameter would change nothing)
+    at = np.array([0.3 if i % 2 == 0 else 0.7 for i in range(len(plant.state))])
+    mid = np.repeat(np.array([[v.lo + f * (v.hi - v.lo) for v, f in zip(plant.state, at, strict=True)]]), 2, axis=0)
+    lo, hi = plant.input_box(params)
+    u1 = lo + 0.7 * (hi - lo)
+    u = np.repeat(u1[None, :], 2, axis=0) if plant.n_inputs > 1 else np.full(2, u1[0])
     both: dict[str, Any] = dict(params)
     both.update({n: np.array([lo, hi]) for n, lo, hi in vary})
     try:
