@@ -253,6 +253,13 @@ def test_bad_input_is_one_line_and_exit_2(trained, tmp_path, args, message):
     assert not out.exists() or not any(out.iterdir())  # nothing written
 
 
+def test_the_policy_folder_is_no_place_for_the_report(trained):
+    before = sorted(p.name for p in (trained / "pol").iterdir())
+    res = run("verify", "--policy", trained / "pol", "--samples", 5, "--out", trained / "pol")
+    assert res.exit_code == 2 and "the policy's own folder" in res.output
+    assert sorted(p.name for p in (trained / "pol").iterdir()) == before
+
+
 def test_a_folder_that_is_no_training_is_one_line(tmp_path):
     res = run("verify", "--policy", tmp_path, "--samples", 5)
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1 and "no params.npz" in res.output

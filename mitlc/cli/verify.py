@@ -359,6 +359,8 @@ def verify(
     steps = _steps(policy, spec)
     if method != "uniform" and budget > 0:  # the falsifier's package, before any rollout
         _check_method(method)
+    if out is not None and Path(out).resolve() == Path(policy_dir).resolve():
+        raise InputError("the policy's own folder: give the verification a folder of its own", file=f"--out {out}")
     folder = _prepare_out(out) if out is not None else None  # the input is sound: only now is anything made
     outcome = verify_policy(policy, spec, space, steps, samples, budget, method, seed, keep, confidence)
     sampled, search = outcome.sampled, outcome.search
