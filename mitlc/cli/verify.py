@@ -161,6 +161,7 @@ def _write_counterexamples(folder: Path, spec: Any, space: Any, judged: Any, ord
     from mitlc.verify.plots import counterexample_png
 
     plant = spec.plant
+    (folder / REPORT).unlink(missing_ok=True)  # written last, anew: until then the folder reads as unfinished
     for old in sorted(folder.iterdir()):  # a previous verification's: they would read as this one's
         if re.fullmatch(r"cex_\d{3,}\.(npz|png)", old.name) and old.is_file():
             old.unlink(missing_ok=True)
