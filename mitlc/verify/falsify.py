@@ -152,7 +152,7 @@ def _de(ledger: _Ledger, rng: np.random.Generator, start: np.ndarray | None, pop
     try:
         from scipy.optimize import differential_evolution
     except ImportError:
-        raise InputError("differential evolution needs scipy: pip install scipy", file="--method") from None
+        raise InputError("differential evolution needs scipy: pip install 'mitlc[verify]'", file="--method") from None
 
     def f(zt: np.ndarray) -> np.ndarray:
         z = np.atleast_2d(zt.T)
@@ -189,7 +189,7 @@ def falsify(
     objective: Objective,
     dim: int,
     budget: int,
-    method: str = "cma",
+    method: str = "de",
     seed: int = 0,
     start: np.ndarray | None = None,
     stop: bool = True,
