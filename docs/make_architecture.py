@@ -45,6 +45,7 @@ STAGES: dict[str, tuple[str, str]] = {
     "learn": ("RewardSystem | HybridAutomaton", "Sacpn, HybridLearner"),
     "sweep": ("Spec + grid", "ResultStore"),
     "gym": ("RewardSystem + gym.Env", "MitlRewardWrapper"),
+    "verify": ("Policy + Spec + ranges", "bound, counterexamples"),
     "cli": ("argv", "files, exit code"),
 }
 """The pipeline's stages in data-flow order: stage -> (what goes in, what comes out)."""

@@ -32,7 +32,8 @@ ALLOWED: dict[str, set[str]] = {
     "learn": BASE | {"cachefiles", "npzfile", "plants", "spec", "petri", "hybrid", "runtime"},
     "sweep": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn"},
     "gym": BASE | {"plants", "spec", "petri", "monitor", "runtime", "learn"},
-    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "runtime", "learn", "sweep", "gym"},
+    "verify": BASE | {"plants", "spec", "monitor"},
+    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "runtime", "learn", "sweep", "gym", "verify"},
     "crm": {"gym"},  # mitlc/crm.py, the deprecation shim of mitlc.gym.crm: no stage imports it
 }
 """Stage -> the stages it may import."""

@@ -48,6 +48,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "specs": ("specs", "specs", "List the shipped specs, or print the one called NAME (e.g. pendulum/p2_avoid)."),
     "sweep": ("sweep", "sweep", "Train SPEC over a grid of trainer settings, weights and options, several seeds each."),
     "train": ("train", "train", "Train SACPN controllers on a spec and judge them with the monitor."),
+    "verify": (
+        "verify",
+        "verify",
+        "Check a trained policy against its spec: a sampled bound and a search for counterexamples.",
+    ),
 }
 """Command name -> (module under :mod:`mitlc.cli`, attribute, short help: the first sentence of the
 command's docstring, which ``mitlc --help`` lists; tests/test_light_cli.py keeps them in step)."""

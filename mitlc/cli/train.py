@@ -304,6 +304,14 @@ def _outputs(
 )
 @click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
 @click.option(
+    "--starts",
+    "starts_path",
+    type=click.Path(exists=True, dir_okay=False),
+    default=None,
+    help="With --resume: start each run's trial from one of these states (x0 of the counterexamples.npz "
+    "'mitlc verify --out' writes) half the time, from the init box otherwise (mitlc docs verify).",
+)
+@click.option(
     "--checkpoint-every",
     type=click.FloatRange(0, 1e9),
     default=60.0,
@@ -341,6 +349,7 @@ def train(
     preset,
     no_race,
     no_plots,
+    starts_path,
     checkpoint_every,
     quiet,
 ) -> None:
@@ -361,6 +370,8 @@ def train(
             if value is not None:
                 what = "SAC trainings keep no checkpoint" if option == "--resume" else "it is SACPN's"
                 raise InputError(f"{option} does not go with --learner sac: {what}", file=option)
+    if starts_path is not None and resume_dir is None:
+        raise InputError("--starts guides a resumed training: give --resume DIR too", file="--starts")
     if resume_dir is not None:
         ckpt = Path(resume_dir) / PARAMS
         if not ckpt.is_file():
@@ -394,6 +405,8 @@ def train(
                 "a spec of 'require' criteria trains HyRL; --learner sac takes a formula", file="--learner"
             )
         trials = TRIALS if trials is None else trials
+        if starts_path is not None:
+            raise InputError("--starts guides SACPN trainings; this spec trains HyRL", file="--starts")
         from mitlc.cli.hybrid import train_hybrid_cli
         from mitlc.learn.hyrl import HyrlSettings
 
@@ -440,6 +453,10 @@ def train(
     if meta is not None:
         agent = build(settings, runs, seed)
         agent.load(Path(resume_dir) / PARAMS)
+        if starts_path is not None:  # falsification-guided training (mitlc.cli.guided)
+            from mitlc.cli.guided import guide_starts, read_starts
+
+            guide_starts(agent, read_starts(starts_path, agent.plant.state_names))
         wall_before = _wall_before(Path(resume_dir))
         raced = _read_json(Path(resume_dir) / "metrics.json").get("race")
         outset = output_set(out, spec, continuing).open()
