@@ -136,7 +136,8 @@ def _no_value() -> float:
     help="standard or trial reading of nested intervals for every task (the same as --grid option.clock=VALUE).",
 )
 @click.option("--list", "list_only", is_flag=True, help="Print every grid name with its current value and exit.")
-@click.option("--no-plot", is_flag=True, help="Skip sweep.png.")
+@click.option("--no-plot", is_flag=True, help="Skip sweep.png (and the report).")
+@click.option("--no-report", is_flag=True, help="Skip report.html, the sweep as one HTML page (mitlc docs report).")
 @click.option(
     "-q", "--quiet", is_flag=True, help="No progress on stderr (a bar on a terminal, else a line per 5 % of the tasks)."
 )
@@ -157,6 +158,7 @@ def sweep(
     list_only,
     no_plot,
     quiet,
+    no_report,
 ) -> None:
     """Train SPEC over a grid of trainer settings, weights and options, several seeds each.
 
@@ -235,6 +237,9 @@ def sweep(
         fig = heatmap_figure(plan, outcome.records)
         if fig is not None:
             atomic_write(out / "sweep.png", png_bytes(fig))
+    from mitlc.cli.report import after_sweep
+
+    after_sweep(out, not (no_report or no_plot))
     click.echo(
         f"{outcome.finished} tasks run in {outcome.wall_s:.1f} s, {outcome.skipped} done earlier; results in {out}"
     )

@@ -302,7 +302,8 @@ def _outputs(
     help="Train sigma_frac 0.3 and rbf_width 0.5 straight away, without first racing the exploration designs "
     "(mitlc docs training; --sigma, --set sigma_frac=... or --set rbf_width=... leave that setting out of the race).",
 )
-@click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
+@click.option("--no-plots", is_flag=True, help="Skip the PNG figures (and the report).")
+@click.option("--no-report", is_flag=True, help="Skip report.html, the training as one HTML page (mitlc docs report).")
 @click.option(
     "--checkpoint-every",
     type=click.FloatRange(0, 1e9),
@@ -343,8 +344,10 @@ def train(
     no_plots,
     checkpoint_every,
     quiet,
+    no_report,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
+    from mitlc.cli.report import after_training
     from mitlc.learn.checkpoint import check_against, recorded_spec
     from mitlc.learn.sacpn import SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
@@ -416,7 +419,8 @@ def train(
         options = CompileOptions.from_spec(
             spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward
         )
-        _train_sac(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
+        out = _train_sac(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
+        after_training(out, not (no_report or no_plots))
         return
     trials = TRIALS if trials is None else trials
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
@@ -488,9 +492,10 @@ def train(
         _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced)
     finally:
         outset.close()
+    after_training(outset.out, not (no_report or no_plots))
 
 
-def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> None:
+def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> Path:
     """``mitlc train --learner sac``: :class:`mitlc.gym.sac.SacRuns` into an output set (the models,
     metrics.json as SACPN's, the plots); Ctrl-C saves nothing (no checkpoint to resume)."""
     from mitlc.cli.progress import Progress
@@ -543,6 +548,7 @@ def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) 
         if rate is not None
         else f"no trials run; results in {out}"
     )
+    return out
 
 
 def _sac_outputs(agent, spec, wall_s: float, plots: bool = True) -> tuple[dict[str, bytes | str], dict]:

@@ -1,0 +1,112 @@
+"""``mitlc report DIR``: a training's or a sweep's folder as one self-contained HTML page.
+
+``mitlc report runs/p2_avoid_1`` writes ``runs/p2_avoid_1/report.html``: the spec and its compiled
+reward, the net with its marking along a run's greedy rollout (a slider and play), the state,
+input and propositions beside it, every run's learning curve and their mean, the monitor's verdict
+per run and the settings (:mod:`mitlc.cli.reports`). A sweep's folder gets its grid as a table and
+a heat map of success. ``mitlc train`` and ``mitlc sweep`` write it at their end
+(:func:`after_training`, :func:`after_sweep`) unless ``--no-report``.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+
+from mitlc.cli.common import handle_errors, plant_file_option
+from mitlc.errors import InputError, MitlError
+from mitlc.fileio import atomic_write
+
+__all__ = ["report", "write_report", "after_training", "after_sweep", "folder_kind"]
+
+
+def folder_kind(folder: Path) -> str:
+    """``training`` or ``sweep``: what ``folder`` holds; one line naming it otherwise."""
+    if not folder.exists():
+        raise InputError(f"no such folder {folder}", file=str(folder))
+    if not folder.is_dir():
+        raise InputError(f"{folder} is a file; give the folder mitlc train or mitlc sweep wrote", file=str(folder))
+    if (folder / "metrics.json").is_file():
+        return "training"
+    if (folder / "results.json").is_file():
+        return "sweep"
+    raise InputError(
+        f"{folder} is not a mitlc training or sweep folder (it has neither metrics.json nor results.json)",
+        file=str(folder),
+    )
+
+
+def write_report(folder: str | Path) -> Path:
+    """Write ``folder/report.html`` (atomically) and return its path."""
+    from mitlc.cli.reports import REPORT, report_html
+
+    folder = Path(folder)
+    kind = folder_kind(folder)
+    if kind == "training":
+        from mitlc.cli.reports.training import training_data
+
+        data = training_data(folder)
+    else:
+        from mitlc.cli.reports.sweep import sweep_data
+
+        data = sweep_data(folder)
+    path = folder / REPORT
+    atomic_write(path, report_html(data), str(path))
+    return path
+
+
+def _ours(path: Path) -> bool:
+    """Whether ``path`` is a report mitlc wrote (its generator line), which a new result replaces."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(600)
+    except OSError:
+        return False
+    return b'<meta name="generator" content="mitlc report">' in head
+
+
+def after_training(out: Path | str | None, enabled: bool) -> None:
+    """The end of ``mitlc train``: the folder's report written, or (``--no-report``) an earlier
+    report of ours removed, since it shows a training the folder no longer holds. A report that
+    cannot be made is a warning: the training's results are written already."""
+    if out is None:
+        return
+    _after(Path(out), enabled)
+
+
+def after_sweep(out: Path | str, enabled: bool) -> None:
+    """The end of ``mitlc sweep``: as :func:`after_training`, for the sweep's folder."""
+    _after(Path(out), enabled)
+
+
+def _after(out: Path, enabled: bool) -> None:
+    from mitlc.cli.reports import REPORT
+
+    path = out / REPORT
+    if not enabled:
+        if _ours(path):
+            path.unlink(missing_ok=True)
+        return
+    try:
+        write_report(out)
+    except MitlError as exc:
+        click.echo(f"warning: no report: {exc.render()}", err=True)
+
+
+@click.command("report")
+@click.argument("folder", metavar="DIR", type=click.Path(file_okay=True, dir_okay=True))
+@plant_file_option
+@handle_errors
+def report(folder: str) -> None:
+    """Write DIR/report.html: a training's or a sweep's folder as one self-contained HTML page.
+
+    A training's page shows the spec and its compiled reward, the net with its marking along a
+    run's greedy rollout (slider and play), the state, input and propositions, the learning curves,
+    the monitor's verdict per run and the settings; a sweep's shows its grid and a heat map of
+    success. One file, opened by double-click: no network."""
+    start = time.perf_counter()
+    path = write_report(folder)
+    size = path.stat().st_size
+    click.echo(f"wrote {path} ({size / 1024:.0f} KiB in {time.perf_counter() - start:.1f} s)")
