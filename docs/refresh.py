@@ -51,6 +51,7 @@ PAGES = (
     "docs/plants.md",
     "docs/monitor.md",
     "docs/sweep.md",
+    "docs/report.md",
 )
 
 # What a page may show that depends on the machine: the seconds a training took.

@@ -246,7 +246,7 @@ def test_no_report_removes_ours_and_keeps_a_users(tmp_path):
     assert run(*common, "--no-plots").exit_code == 0
     assert (d / "report.html").read_text() == "my notes\n"  # not ours: never removed
     res = run("report", d)
-    assert res.exit_code == 0 and res.output.startswith(f"wrote {d / 'report.html'} (")
+    assert res.exit_code == 0 and res.output.startswith(f"wrote {d / 'report.html'} in ")
 
 
 def test_bad_folders_are_one_line(tmp_path):
@@ -254,8 +254,8 @@ def test_bad_folders_are_one_line(tmp_path):
     (tmp_path / "file.txt").write_text("x")
     cases = {
         tmp_path / "missing": "no such folder",
-        tmp_path / "empty": "is not a mitlc training or sweep folder",
-        tmp_path / "file.txt": "is a file",
+        tmp_path / "empty": "not a mitlc training or sweep folder: it has neither metrics.json nor results.json",
+        tmp_path / "file.txt": "a file, not a folder",
     }
     for folder, message in cases.items():
         res = run("report", folder)

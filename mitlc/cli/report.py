@@ -25,15 +25,15 @@ __all__ = ["report", "write_report", "after_training", "after_sweep", "folder_ki
 def folder_kind(folder: Path) -> str:
     """``training`` or ``sweep``: what ``folder`` holds; one line naming it otherwise."""
     if not folder.exists():
-        raise InputError(f"no such folder {folder}", file=str(folder))
+        raise InputError("no such folder", file=str(folder))
     if not folder.is_dir():
-        raise InputError(f"{folder} is a file; give the folder mitlc train or mitlc sweep wrote", file=str(folder))
+        raise InputError("a file, not a folder: give the folder mitlc train or mitlc sweep wrote", file=str(folder))
     if (folder / "metrics.json").is_file():
         return "training"
     if (folder / "results.json").is_file():
         return "sweep"
     raise InputError(
-        f"{folder} is not a mitlc training or sweep folder (it has neither metrics.json nor results.json)",
+        "not a mitlc training or sweep folder: it has neither metrics.json nor results.json",
         file=str(folder),
     )
 
@@ -108,5 +108,4 @@ def report(folder: str) -> None:
     success. One file, opened by double-click: no network."""
     start = time.perf_counter()
     path = write_report(folder)
-    size = path.stat().st_size
-    click.echo(f"wrote {path} ({size / 1024:.0f} KiB in {time.perf_counter() - start:.1f} s)")
+    click.echo(f"wrote {path} in {time.perf_counter() - start:.1f} s")
