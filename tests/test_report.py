@@ -92,6 +92,37 @@ def test_train_writes_the_report_and_its_data_are_the_runtimes(training):
     np.testing.assert_allclose(data["curves"]["mean"], np.mean(metrics["returns"], axis=0), rtol=1e-3)
 
 
+def test_the_curves_are_written_as_the_training_goes(training, tmp_path):
+    """curves.csv holds every trial's returns (written after the last trial at the latest); while a
+    training runs, the page shows the curves so far and reloads itself; appends add only new trials."""
+    from types import SimpleNamespace
+
+    from mitlc.cli.reports.live import CURVES, MARK, LiveCurves, read_curves
+
+    text = (training / CURVES).read_text()
+    assert text.startswith(MARK) and text.splitlines()[1] == "trial,run_0,run_1,run_2"
+    metrics = json.loads((training / "metrics.json").read_text())
+    np.testing.assert_allclose(read_curves(training / CURVES), metrics["returns"], rtol=1e-6)
+    assert "http-equiv" not in (training / "report.html").read_text()  # the final report does not reload
+
+    returns = np.arange(3 * 40, dtype=float).reshape(3, 40)
+    returns[2, 7] = np.nan  # a diverged run
+    live = LiveCurves(tmp_path, "p2_avoid.mitl", 40, every_s=1e9)
+    live(SimpleNamespace(returns=returns[:, :5]))
+    assert not (tmp_path / CURVES).exists()  # not yet time
+    live.every_s = 0
+    live(SimpleNamespace(returns=returns[:, :5]))
+    live(SimpleNamespace(returns=returns[:, :12]))
+    got = read_curves(tmp_path / CURVES)
+    np.testing.assert_array_equal(got, returns[:, :12])
+    assert (tmp_path / CURVES).read_text().count("\n") == 2 + 12  # appended, not repeated
+    page = (tmp_path / "report.html").read_text()
+    assert '<meta http-equiv="refresh" content="15">' in page and "trial 12 of 40" in page
+    live.every_s = 1e9
+    live(SimpleNamespace(returns=returns))  # the last trial: written whatever the time
+    np.testing.assert_array_equal(read_curves(tmp_path / CURVES), returns)
+
+
 def test_curves_are_binned_past_their_points():
     from mitlc.cli.reports.training import CURVE_POINTS, _curves
 
@@ -240,8 +271,10 @@ def test_no_report_removes_ours_and_keeps_a_users(tmp_path):
     d = tmp_path / "d"
     common = ("train", "--spec", P2, "--runs", 1, "--trials", 2, "--no-race", "-q", "--out", d)
     assert run(*common).exit_code == 0 and (d / "report.html").is_file()
+    assert (d / "curves.csv").is_file()
     assert run(*common, "--no-report").exit_code == 0
     assert not (d / "report.html").exists()  # it showed a training the folder no longer holds
+    assert not (d / "curves.csv").exists()
     (d / "report.html").write_text("my notes\n")
     assert run(*common, "--no-plots").exit_code == 0
     assert (d / "report.html").read_text() == "my notes\n"  # not ours: never removed
@@ -261,3 +294,25 @@ def test_bad_folders_are_one_line(tmp_path):
         res = run("report", folder)
         assert res.exit_code == 2, res.output
         assert res.output.count("\n") == 1 and res.output.startswith(f"{folder}: error: ") and message in res.output
+
+
+def test_an_interrupted_training_has_a_report_that_says_so(tmp_path, monkeypatch):
+    from mitlc.learn.sacpn import sacpn
+
+    real = sacpn.Sacpn._trial
+    calls = {"n": 0}
+
+    def interrupted(self):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(self)
+
+    monkeypatch.setattr(sacpn.Sacpn, "_trial", interrupted)
+    out = tmp_path / "cut"
+    res = run("train", "--spec", P2, "--runs", 2, "--trials", 5, "--no-race", "-q", "--out", out)
+    assert res.exit_code == 130, res.output
+    page = (out / "report.html").read_text()
+    assert "the training was interrupted" in page and "http-equiv" not in page  # not a page in progress
+    data = json.loads(re.search(r'id="report-data">(.*?)</script>', page, re.S).group(1))
+    assert data["summary"]["trials"] == 2 and len(data["curves"]["mean"]) == 2

@@ -19,7 +19,7 @@ from mitlc.cli.common import handle_errors, plant_file_option
 from mitlc.errors import InputError, MitlError
 from mitlc.fileio import atomic_write
 
-__all__ = ["report", "write_report", "after_training", "after_sweep", "folder_kind"]
+__all__ = ["report", "write_report", "after_training", "after_sweep", "live_curves", "folder_kind"]
 
 
 def folder_kind(folder: Path) -> str:
@@ -81,13 +81,26 @@ def after_sweep(out: Path | str, enabled: bool) -> None:
     _after(Path(out), enabled)
 
 
+def live_curves(out: Path, spec: object, total: int, enabled: bool):
+    """What ``mitlc train`` calls after each trial (:class:`mitlc.cli.reports.live.LiveCurves`):
+    ``curves.csv`` and the page of the training in progress, kept up in ``out``; None without a report."""
+    if not enabled:
+        return None
+    from mitlc.cli.reports.live import LiveCurves
+
+    return LiveCurves(out, Path(str(getattr(spec, "path", None) or "spec")).name, total)
+
+
 def _after(out: Path, enabled: bool) -> None:
     from mitlc.cli.reports import REPORT
+    from mitlc.cli.reports.live import CURVES, is_ours
 
     path = out / REPORT
-    if not enabled:
+    if not enabled:  # what an earlier training of the folder left shows a training it no longer holds
         if _ours(path):
             path.unlink(missing_ok=True)
+        if is_ours(out / CURVES):
+            (out / CURVES).unlink(missing_ok=True)
         return
     try:
         write_report(out)

@@ -347,7 +347,7 @@ def train(
     no_report,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
-    from mitlc.cli.report import after_training
+    from mitlc.cli.report import after_training, live_curves
     from mitlc.learn.checkpoint import check_against, recorded_spec
     from mitlc.learn.sacpn import SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
@@ -488,11 +488,16 @@ def train(
         except BaseException:
             outset.close()
             raise
+    report = not (no_report or no_plots)
     try:
-        _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced)
+        live = live_curves(outset.out, spec, trials, report)
+        _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced, live)
+    except SystemExit:  # interrupted, the checkpoint written: the report shows it as interrupted
+        after_training(outset.out, report)
+        raise
     finally:
         outset.close()
-    after_training(outset.out, not (no_report or no_plots))
+    after_training(outset.out, report)
 
 
 def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> Path:
@@ -637,7 +642,9 @@ def _read_json(path: Path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced=None) -> None:
+def _train_into(
+    outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced=None, live=None
+) -> None:
     from mitlc.cli.progress import Progress, compile_notice
 
     out = outset.out
@@ -651,6 +658,8 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     def progress(trial: int, returns: np.ndarray) -> None:
         interrupt.check()
         bar.update(f"mean return {_mean(agent.returns[:, -10:]):.1f}")
+        if live is not None:  # curves.csv and the page of the training so far (mitlc.cli.reports.live)
+            live(agent)
         now = time.perf_counter()
         if checkpoint_every and now - saved[0] >= checkpoint_every:  # kill -9 loses at most this much
             try:

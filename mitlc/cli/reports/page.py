@@ -83,7 +83,7 @@ def viridis(v: float) -> str:
     return "#" + "".join(f"{c:02x}" for c in rgb)
 
 
-def _page(title: str, body: str, data: Any, script: bool) -> str:
+def _page(title: str, body: str, data: Any, script: bool, reload_s: int | None = None) -> str:
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en">',
@@ -91,6 +91,7 @@ def _page(title: str, body: str, data: Any, script: bool) -> str:
         '<meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
         '<meta name="generator" content="mitlc report">',
+        f'<meta http-equiv="refresh" content="{int(reload_s)}">' if reload_s else "",
         f"<title>{_e(title)}</title>",
         f"<script>{_RECORDER}</script>",
         f"<style>{_asset('report.css')}</style>",
@@ -148,25 +149,28 @@ _VERDICT_HEAD = [
 def _training_body(d: dict[str, Any]) -> str:
     s = d["summary"]
     rate = s.get("success_rate")
+    wall = f"{_fmt(s['wall_s'], 1)} s" if s.get("wall_s") is not None else "–"
     parts = [
         f"<h1>{_e(d['title'])} <span class=muted>— training {_e(d['folder'])}</span></h1>",
         '<div class="summary">',
         f"<span>learner <b>{_e(s['learner'])}</b></span>",
         f"<span>runs <b>{_e(s['runs'])}</b></span>",
         f"<span>trials <b>{_e(s['trials'])}</b></span>",
-        f"<span>seed <b>{_e(s['seed'])}</b></span>",
+        f"<span>seed <b>{_e(_fmt(s['seed']))}</b></span>",
         f"<span>success rate <b>{_e(_fmt(rate, 2)) if rate is not None else '–'}</b></span>",
-        f"<span>training time <b>{_e(_fmt(s.get('wall_s'), 1))} s</b></span>",
+        f"<span>training time <b>{_e(wall)}</b></span>",
         "</div>",
         _notes(d["notes"]),
-        "<h2>Spec and reward</h2>",
     ]
+    if d.get("formula") or d.get("spec_source"):
+        parts.append("<h2>Spec and reward</h2>")
     if d.get("spec_source"):
         parts.append(f"<pre>{_e(d['spec_source'].rstrip())}</pre>")
-    parts.append(
-        f"<p>formula <code>{_e(d.get('formula'))}</code>; "
-        f"judged by the monitor on <code>{_e(d.get('check'))}</code></p>"
-    )
+    if d.get("formula"):
+        parts.append(
+            f"<p>formula <code>{_e(d.get('formula'))}</code>; "
+            f"judged by the monitor on <code>{_e(d.get('check'))}</code></p>"
+        )
     if d.get("reward"):
         parts.append(
             "<p>compiled reward r(M<sub>k</sub>, M<sub>k+1</sub>) (p: tokens in place p at step k+1, ~p: at step k):"
@@ -219,19 +223,20 @@ def _training_body(d: dict[str, Any]) -> str:
             ]
         )
         attrs.append(f' class="run-row" data-run="{r}"' if ro is not None else "")
-    parts += [
-        "<h2>Verdicts</h2>",
-        "<p class=muted>Each run's greedy rollout judged by the monitor: the verdict, the robustness, the smallest "
-        "failing part of the formula and the time from which the violation was certain."
-        + (" Click a row to see its rollout." if ro is not None else "")
-        + "</p>",
-        f'<div id="verdicts">{_table(_VERDICT_HEAD, rows, {0, 2, 4, 5, 6, 7}, attrs)}</div>',
-        "<h2>Settings and versions</h2>",
-        "<h3>compile options</h3>",
-        _kv_table(d["options"]),
-        "<h3>trainer settings</h3>",
-        _kv_table(d["settings"]),
-    ]
+    if rows:
+        parts += [
+            "<h2>Verdicts</h2>",
+            "<p class=muted>Each run's greedy rollout judged by the monitor: the verdict, the robustness, the smallest "
+            "failing part of the formula and the time from which the violation was certain."
+            + (" Click a row to see its rollout." if ro is not None else "")
+            + "</p>",
+            f'<div id="verdicts">{_table(_VERDICT_HEAD, rows, {0, 2, 4, 5, 6, 7}, attrs)}</div>',
+        ]
+    parts.append("<h2>Settings and versions</h2>")
+    if d["options"]:
+        parts += ["<h3>compile options</h3>", _kv_table(d["options"])]
+    if d["settings"]:
+        parts += ["<h3>trainer settings</h3>", _kv_table(d["settings"])]
     if d.get("race"):
         parts += [
             "<details><summary>the race of exploration designs</summary>",
@@ -251,5 +256,6 @@ def report_html(data: dict[str, Any]) -> str:
     """The page of a training's (``data["kind"] == "training"``) or a sweep's data."""
     if data["kind"] == "training":
         page_data = {k: v for k, v in data.items() if k != "net_svg"}
-        return _page(f"{data['title']}: mitlc training report", _training_body(data), page_data, script=True)
+        title = f"{data['title']}: mitlc training report"
+        return _page(title, _training_body(data), page_data, script=True, reload_s=data.get("reload_s"))
     return _page(f"{data['title']}: mitlc sweep report", _sweep_body(data), {"kind": "sweep"}, script=False)

@@ -23,14 +23,11 @@ import numpy as np
 
 from mitlc.errors import InputError
 
-__all__ = ["training_data", "rollout_markings", "CURVE_POINTS", "LIVE_CURVES"]
+__all__ = ["training_data", "progress_data", "rollout_markings", "CURVE_POINTS"]
 
 CURVE_POINTS = 400
 """A learning curve longer than this many trials is shown as this many bin means (the page's size
 stays bounded however long the training was)."""
-
-LIVE_CURVES = "curves.csv"
-"""The learning curves as the training goes (:mod:`mitlc.cli.reports.live`)."""
 
 _DIGITS = 5
 """Significant digits of the states, inputs and returns in the page."""
@@ -295,3 +292,39 @@ def _final_returns(returns: np.ndarray, last: int = 10) -> np.ndarray:
     out = np.full(returns.shape[0], np.nan)
     np.divide(sums, counts, out=out, where=counts > 0)
     return out
+
+
+def progress_data(folder: Path, title: str, returns: np.ndarray, total: int, reload_s: int) -> dict[str, Any]:
+    """The page of a training in progress (:mod:`mitlc.cli.reports.live`): its learning curves so far,
+    ``returns`` ``(R, trials done)``, out of ``total`` trials; the page reloads every ``reload_s`` seconds."""
+    R, T = returns.shape
+    return {
+        "kind": "training",
+        "title": title,
+        "folder": Path(folder).name,
+        "summary": {
+            "learner": "sacpn",
+            "runs": R,
+            "trials": f"{T} of {total}",
+            "seed": None,
+            "success_rate": None,
+            "wall_s": None,
+            "interrupted": False,
+        },
+        "formula": None,
+        "check": None,
+        "options": {},
+        "settings": {},
+        "race": None,
+        "manifest": {},
+        "curves": _curves(returns),
+        "versions": _versions(),
+        "notes": [
+            f"training in progress: trial {T} of {total}. This page reloads every {reload_s} s; when the training "
+            "ends, the full report replaces it. curves.csv in the folder holds the returns so far."
+        ],
+        "net_svg": None,
+        "rollout": None,
+        "verdicts": [],
+        "reload_s": int(reload_s),
+    }
