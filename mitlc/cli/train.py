@@ -495,6 +495,9 @@ def train(
     except SystemExit:  # interrupted, the checkpoint written: the report shows it as interrupted
         after_training(outset.out, report)
         raise
+    except BaseException:  # no set of this training written here: the pages it kept up go with it
+        after_training(outset.out, False)
+        raise
     finally:
         outset.close()
     after_training(outset.out, report)
