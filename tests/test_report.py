@@ -316,3 +316,31 @@ def test_an_interrupted_training_has_a_report_that_says_so(tmp_path, monkeypatch
     assert "the training was interrupted" in page and "http-equiv" not in page  # not a page in progress
     data = json.loads(re.search(r'id="report-data">(.*?)</script>', page, re.S).group(1))
     assert data["summary"]["trials"] == 2 and len(data["curves"]["mean"]) == 2
+
+
+def test_a_hyrl_trainings_report(tmp_path):
+    """Classical criteria (HyRL): no net, the runs' verdicts as metrics.json records them."""
+    out = tmp_path / "hy"
+    spec = ROOT / "specs" / "mass_damper" / "overshoot.mitl"
+    assert run("train", "--spec", spec, "--runs", 2, "--trials", 3, "-q", "--no-plots", "--out", out).exit_code == 0
+    assert run("report", out).exit_code == 0
+    page = (out / "report.html").read_text()
+    data = json.loads(re.search(r'id="report-data">(.*?)</script>', page, re.S).group(1))
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert [v["verdict"] for v in data["verdicts"]] == metrics["runs_succeeding"]
+    assert data["rollout"] is None and data["summary"]["learner"] == "hyrl"
+    assert "require overshoot &lt;= 0" in page and len(data["curves"]["runs"]) == 2
+
+
+def test_a_sac_trainings_report(tmp_path):
+    """--learner sac: the same page, its runs' models rolled out and stepped through the runtime."""
+    pytest.importorskip("stable_baselines3", reason="needs Stable-Baselines3 and PyTorch: pip install 'mitlc[sb3]'")
+    out = tmp_path / "sac"
+    small = ["--set", "learning_starts=20", "--set", "net=16x16", "--set", "batch_size=32"]
+    r = run("train", "--spec", P2, "--learner", "sac", "--runs", 2, "--trials", 2, "-q", "--out", out, *small)
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
+    page = (out / "report.html").read_text()
+    data = json.loads(re.search(r'id="report-data">(.*?)</script>', page, re.S).group(1))
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert data["summary"]["learner"] == "sac" and len(data["rollout"]["runs"]) == 2
+    assert [v["verdict"] for v in data["verdicts"]] == metrics["satisfied"]

@@ -226,8 +226,12 @@ def _training_body(d: dict[str, Any]) -> str:
     if rows:
         parts += [
             "<h2>Verdicts</h2>",
-            "<p class=muted>Each run's greedy rollout judged by the monitor: the verdict, the robustness, the smallest "
-            "failing part of the formula and the time from which the violation was certain."
+            (
+                "<p class=muted>Each run's verdict by the criteria, as metrics.json records it."
+                if s["learner"] == "hyrl"
+                else "<p class=muted>Each run's greedy rollout judged by the monitor: the verdict, the robustness, "
+                "the smallest failing part of the formula and the time from which the violation was certain."
+            )
             + (" Click a row to see its rollout." if ro is not None else "")
             + "</p>",
             f'<div id="verdicts">{_table(_VERDICT_HEAD, rows, {0, 2, 4, 5, 6, 7}, attrs)}</div>',

@@ -132,7 +132,8 @@ def _net_svg(rs: Any) -> tuple[str | None, str | None]:
 
 
 def _agent(folder: Path, metrics: dict) -> tuple[Any, Any, list[str]]:
-    """The learner the folder holds, the spec it was trained on and notes for the page."""
+    """The learner the folder holds, the spec it was trained on and notes for the page (a HyRL
+    training: no learner, and its spec's text)."""
     notes: list[str] = []
     if metrics.get("learner") == "sac":
         try:
@@ -153,15 +154,20 @@ def _agent(folder: Path, metrics: dict) -> tuple[Any, Any, list[str]]:
         raise InputError(f"no params.npz in {folder}: not a finished mitlc training", file=str(folder))
     meta = read_meta(ckpt)
     if meta.get("kind") == "hyrl":
-        return None, None, notes
+        notes.append(
+            "a training of classical criteria (HyRL): a run succeeds when its policy meets the criteria from "
+            "every initial state checked (mitlc docs hyrl); there is no net to show"
+        )
+        return None, str(meta.get("spec_source") or ""), notes
     notes += restore_plant(meta, ckpt)
     spec = recorded_spec(meta, ckpt)
     return load_sacpn(ckpt, meta, spec), spec, notes
 
 
 def _verdict_rows(metrics: dict) -> list[dict[str, Any]]:
-    """Per run, what metrics.json says (a HyRL training, whose runs are judged by their criteria)."""
-    sat = metrics.get("satisfied") or []
+    """Per run, what metrics.json says (a HyRL training, whose runs are judged by their criteria:
+    ``runs_succeeding``)."""
+    sat = metrics.get("satisfied") or metrics.get("runs_succeeding") or []
     rob = metrics.get("robustness") or []
     rows = []
     for r in range(int(metrics.get("runs") or len(sat))):
@@ -214,6 +220,8 @@ def training_data(folder: Path) -> dict[str, Any]:
     }
     agent, spec, notes = (None, None, []) if metrics.get("interrupted") else _agent(folder, metrics)
     data["notes"] += notes
+    if isinstance(spec, str):  # HyRL
+        data["spec_source"], data["summary"]["learner"], spec = spec, "hyrl", None
     if metrics.get("interrupted"):
         data["notes"].append("the training was interrupted: no final rollouts were judged (mitlc train --resume)")
     if agent is None or spec is None or int(metrics.get("trials") or 0) == 0:
@@ -222,8 +230,6 @@ def training_data(folder: Path) -> dict[str, Any]:
             row.update(greedy_return=None, final_return=final[r] if r < len(final) else None)
             row["diverged"] = diverged.get(r)
         data["verdicts"] = rows
-        if agent is None and not metrics.get("interrupted"):
-            data["notes"].append("a training of classical criteria (HyRL): its runs are judged by the criteria")
         return data
 
     from mitlc.monitor.offline import monitor
