@@ -11,7 +11,9 @@ a heat map of success. ``mitlc train`` and ``mitlc sweep`` write it at their end
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -19,23 +21,50 @@ from mitlc.cli.common import handle_errors, plant_file_option
 from mitlc.errors import InputError, MitlError
 from mitlc.fileio import atomic_write
 
-__all__ = ["report", "write_report", "after_training", "after_sweep", "live_curves", "folder_kind"]
+__all__ = [
+    "report",
+    "write_report",
+    "after_command",
+    "after_training",
+    "after_sweep",
+    "live_curves",
+    "folder_kind",
+    "KINDS",
+]
+
+
+def _training(folder: Path) -> dict[str, Any]:
+    from mitlc.cli.reports.training import training_data
+
+    return training_data(folder)
+
+
+def _sweep(folder: Path) -> dict[str, Any]:
+    from mitlc.cli.reports.sweep import sweep_data
+
+    return sweep_data(folder)
+
+
+KINDS: dict[str, tuple[str, Callable[[Path], dict[str, Any]]]] = {
+    "training": ("metrics.json", _training),
+    "sweep": ("results.json", _sweep),
+}
+"""The folders a report is made of: kind -> (the file that marks such a folder, what gathers its page's
+data, a dict whose ``kind`` picks the page's body in :data:`mitlc.cli.reports.page.BODIES`). Another
+command's folder (a verification's) is an entry here and one there, and :func:`after_command` at its end."""
 
 
 def folder_kind(folder: Path) -> str:
-    """``training`` or ``sweep``: what ``folder`` holds; one line naming it otherwise."""
+    """What ``folder`` holds (a key of :data:`KINDS`); one line naming it otherwise."""
     if not folder.exists():
         raise InputError("no such folder", file=str(folder))
     if not folder.is_dir():
         raise InputError("a file, not a folder: give the folder mitlc train or mitlc sweep wrote", file=str(folder))
-    if (folder / "metrics.json").is_file():
-        return "training"
-    if (folder / "results.json").is_file():
-        return "sweep"
-    raise InputError(
-        "not a mitlc training or sweep folder: it has neither metrics.json nor results.json",
-        file=str(folder),
-    )
+    for kind, (marker, _) in KINDS.items():
+        if (folder / marker).is_file():
+            return kind
+    markers = " nor ".join(marker for marker, _ in KINDS.values())
+    raise InputError(f"not a mitlc training or sweep folder: it has neither {markers}", file=str(folder))
 
 
 def write_report(folder: str | Path) -> Path:
@@ -43,15 +72,7 @@ def write_report(folder: str | Path) -> Path:
     from mitlc.cli.reports import REPORT, report_html
 
     folder = Path(folder)
-    kind = folder_kind(folder)
-    if kind == "training":
-        from mitlc.cli.reports.training import training_data
-
-        data = training_data(folder)
-    else:
-        from mitlc.cli.reports.sweep import sweep_data
-
-        data = sweep_data(folder)
+    data = KINDS[folder_kind(folder)][1](folder)
     path = folder / REPORT
     atomic_write(path, report_html(data), str(path))
     return path
@@ -73,12 +94,12 @@ def after_training(out: Path | str | None, enabled: bool) -> None:
     cannot be made is a warning: the training's results are written already."""
     if out is None:
         return
-    _after(Path(out), enabled)
+    after_command(Path(out), enabled)
 
 
 def after_sweep(out: Path | str, enabled: bool) -> None:
     """The end of ``mitlc sweep``: as :func:`after_training`, for the sweep's folder."""
-    _after(Path(out), enabled)
+    after_command(Path(out), enabled)
 
 
 def live_curves(out: Path, spec: object, total: int, enabled: bool):
@@ -91,7 +112,9 @@ def live_curves(out: Path, spec: object, total: int, enabled: bool):
     return LiveCurves(out, Path(str(getattr(spec, "path", None) or "spec")).name, total)
 
 
-def _after(out: Path, enabled: bool) -> None:
+def after_command(out: Path, enabled: bool) -> None:
+    """The end of a command that wrote the folder ``out`` (of a kind in :data:`KINDS`): its report
+    written, or, ``enabled`` false, what an earlier run left of ours removed."""
     from mitlc.cli.reports import REPORT
     from mitlc.cli.reports.live import CURVES, is_ours
 

@@ -14,10 +14,11 @@ from __future__ import annotations
 import html
 import json
 import math
+from collections.abc import Callable
 from importlib import resources
 from typing import Any
 
-__all__ = ["REPORT", "report_html", "embed_json", "viridis"]
+__all__ = ["REPORT", "BODIES", "report_html", "embed_json", "viridis"]
 
 REPORT = "report.html"
 """The report's file name in the folder it describes."""
@@ -256,10 +257,17 @@ def _sweep_body(d: dict[str, Any]) -> str:
     return sweep_body(d)
 
 
+BODIES: dict[str, Callable[[dict[str, Any]], str]] = {"training": _training_body, "sweep": _sweep_body}
+"""A page's kind -> its body's HTML from the gathered data (:data:`mitlc.cli.report.KINDS` gathers it)."""
+
+
 def report_html(data: dict[str, Any]) -> str:
-    """The page of a training's (``data["kind"] == "training"``) or a sweep's data."""
-    if data["kind"] == "training":
+    """The page of a training's (``data["kind"] == "training"``), a sweep's or another kind's data
+    (:data:`BODIES`). A training's data go into the page for its script (but for the net's SVG, which is
+    in the page already); a sweep's page is all HTML."""
+    kind = data["kind"]
+    title = f"{data['title']}: mitlc {kind} report"
+    if kind == "training":
         page_data = {k: v for k, v in data.items() if k != "net_svg"}
-        title = f"{data['title']}: mitlc training report"
-        return _page(title, _training_body(data), page_data, script=True, reload_s=data.get("reload_s"))
-    return _page(f"{data['title']}: mitlc sweep report", _sweep_body(data), {"kind": "sweep"}, script=False)
+        return _page(title, BODIES[kind](data), page_data, script=True, reload_s=data.get("reload_s"))
+    return _page(title, BODIES[kind](data), {"kind": kind}, script=False)
