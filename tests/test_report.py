@@ -123,6 +123,27 @@ def test_the_curves_are_written_as_the_training_goes(training, tmp_path):
     np.testing.assert_array_equal(read_curves(tmp_path / CURVES), returns)
 
 
+def test_the_markings_are_the_learners_own_on_timed_obligations(tmp_path):
+    """Under nested intervals the learner's fused kernel steps its own copy of the timed obligations:
+    the runtime stepped for the page gives the markings of the learner's rollout codes all the same."""
+    from mitlc.cli.reports.training import rollout_markings, training_data
+    from mitlc.learn.checkpoint import read_meta
+    from mitlc.learn.policy import load_sacpn
+
+    out = tmp_path / "n1"
+    spec = ROOT / "specs" / "pendulum" / "n1_reach_in_time.mitl"
+    args = ("--runs", 2, "--trials", 3, "--no-race", "-q", "--no-plots", "--out", out)
+    assert run("train", "--spec", spec, *args).exit_code == 0
+    agent = load_sacpn(out / "params.npz", read_meta(out / "params.npz"))
+    assert agent.rs.timed  # the obligations are there
+    ro = agent.rollout(agent.evaluation_states())
+    M = rollout_markings(agent.rs, agent.runtime.state_names, ro.states, ro.dt)
+    np.testing.assert_array_equal(M, agent.runtime.trace_markings(ro.codes))
+    data = training_data(out)
+    first = [sorted(m if isinstance(m, int) else m[0] for m in run_["marks"][0]) for run_ in data["rollout"]["runs"]]
+    assert first == [sorted(np.flatnonzero(M[r, 0]).tolist()) for r in range(2)]
+
+
 def test_curves_are_binned_past_their_points():
     from mitlc.cli.reports.training import CURVE_POINTS, _curves
 

@@ -129,6 +129,11 @@ def after_command(out: Path, enabled: bool) -> None:
         write_report(out)
     except MitlError as exc:
         click.echo(f"warning: no report: {exc.render()}", err=True)
+    except Exception as exc:  # a bug of the report's: the results are written, so say it and go on
+        click.echo(
+            f"warning: no report: {type(exc).__name__}: {exc} (please report it; mitlc report {out} tries again)",
+            err=True,
+        )
 
 
 @click.command("report")
