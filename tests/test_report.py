@@ -365,3 +365,29 @@ def test_a_sac_trainings_report(tmp_path):
     metrics = json.loads((out / "metrics.json").read_text())
     assert data["summary"]["learner"] == "sac" and len(data["rollout"]["runs"]) == 2
     assert [v["verdict"] for v in data["verdicts"]] == metrics["satisfied"]
+
+
+def test_a_set_not_written_leaves_the_report_of_what_the_folder_holds(tmp_path, monkeypatch):
+    """A training whose set cannot be written into its folder (a full disk; the set goes to a rescue
+    folder): the page in progress it kept up there gives way to the report of the earlier training the
+    folder still holds, and its curves go."""
+    import mitlc.cli.outputs as outputs
+
+    out = tmp_path / "out"
+    common = ("train", "--spec", P2, "--runs", 1, "--no-race", "-q", "--out", out)
+    assert run(*common, "--trials", 3).exit_code == 0
+    real = outputs.stage
+
+    def full_disk(target, data, mode=None):
+        if Path(target).parent == out and Path(target).name != "manifest.json":
+            raise OSError(28, "No space left on device")
+        return real(target, data, mode)
+
+    monkeypatch.setattr(outputs, "stage", full_disk)
+    monkeypatch.setattr(outputs.tempfile, "gettempdir", lambda: str(tmp_path / "rescue"))
+    r = run(*common, "--trials", 5)
+    assert r.exit_code == 2 and "they are saved in" in r.output
+    page = (out / "report.html").read_text()
+    data = json.loads(re.search(r'id="report-data">(.*?)</script>', page, re.S).group(1))
+    assert data["summary"]["trials"] == 3 and "http-equiv" not in page  # the earlier training's report
+    assert not (out / "curves.csv").exists()

@@ -25,6 +25,7 @@ __all__ = [
     "report",
     "write_report",
     "after_command",
+    "after_failed_training",
     "after_training",
     "after_sweep",
     "live_curves",
@@ -110,6 +111,25 @@ def live_curves(out: Path, spec: object, total: int, enabled: bool):
     from mitlc.cli.reports.live import LiveCurves
 
     return LiveCurves(out, Path(str(getattr(spec, "path", None) or "spec")).name, total)
+
+
+def after_failed_training(out: Path, live: Any) -> None:
+    """A training that wrote no set into ``out`` (it failed, or its set went to a rescue folder): what
+    its :func:`live_curves` wrote there is put right. The folder's report is made again from what the
+    folder holds (an earlier training's set), or removed when it holds none; the curves, this
+    training's, go."""
+    from mitlc.cli.reports import REPORT
+    from mitlc.cli.reports.live import CURVES, is_ours
+
+    if live is None or live.written < 0:  # it wrote nothing there
+        return
+    if is_ours(out / CURVES):
+        (out / CURVES).unlink(missing_ok=True)
+    try:
+        write_report(out)
+    except Exception:  # no earlier training there (or none a report can be made of): no report
+        if _ours(out / REPORT):
+            (out / REPORT).unlink(missing_ok=True)
 
 
 def after_command(out: Path, enabled: bool) -> None:

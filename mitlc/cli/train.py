@@ -347,7 +347,7 @@ def train(
     no_report,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
-    from mitlc.cli.report import after_training, live_curves
+    from mitlc.cli.report import after_failed_training, after_training, live_curves
     from mitlc.learn.checkpoint import check_against, recorded_spec
     from mitlc.learn.sacpn import SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
@@ -488,15 +488,15 @@ def train(
         except BaseException:
             outset.close()
             raise
-    report = not (no_report or no_plots)
+    report, live = not (no_report or no_plots), None
     try:
         live = live_curves(outset.out, spec, trials, report)
         _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced, live)
     except SystemExit:  # interrupted, the checkpoint written: the report shows it as interrupted
         after_training(outset.out, report)
         raise
-    except BaseException:  # no set of this training written here: the pages it kept up go with it
-        after_training(outset.out, False)
+    except BaseException:  # no set of this training written here: the pages it kept up are put right
+        after_failed_training(outset.out, live)
         raise
     finally:
         outset.close()
