@@ -147,13 +147,19 @@ def after_command(out: Path, enabled: bool) -> None:
         return
     try:
         write_report(out)
-    except MitlError as exc:
-        click.echo(f"warning: no report: {exc.render()}", err=True)
-    except Exception as exc:  # a bug of the report's: the results are written, so say it and go on
-        click.echo(
-            f"warning: no report: {type(exc).__name__}: {exc} (please report it; mitlc report {out} tries again)",
-            err=True,
-        )
+    except Exception as exc:  # the results are written: say it, and leave no report of another training
+        if isinstance(exc, MitlError):
+            click.echo(f"warning: no report: {exc.render()}", err=True)
+        else:  # a bug of the report's
+            click.echo(
+                f"warning: no report: {type(exc).__name__}: {exc} (please report it; mitlc report {out} tries again)",
+                err=True,
+            )
+        try:
+            if _ours(path):
+                path.unlink()
+        except OSError:
+            pass
 
 
 @click.command("report")
