@@ -144,6 +144,13 @@ def test_the_markings_are_the_learners_own_on_timed_obligations(tmp_path):
     assert first == [sorted(np.flatnonzero(M[r, 0]).tolist()) for r in range(2)]
 
 
+def test_the_report_is_the_same_each_time(training):
+    """Deterministic: made again from the folder, the same bytes (the versions it shows are the installed
+    packages', not what the process happened to import)."""
+    before = (training / "report.html").read_bytes()
+    assert write_report(training).read_bytes() == before
+
+
 def test_curves_are_binned_past_their_points():
     from mitlc.cli.reports.training import CURVE_POINTS, _curves
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import math
 import platform
-import sys
 import warnings
 from pathlib import Path
 from typing import Any
@@ -104,13 +103,18 @@ def _curves(returns: np.ndarray) -> dict[str, Any]:
 
 
 def _versions() -> dict[str, str]:
+    """mitlc's, Python's and the installed libraries' versions (the same page for the same folder, whatever
+    the process imported before)."""
+    from importlib import metadata
+
     from mitlc import __version__
 
-    out = {"mitlc": __version__, "python": platform.python_version(), "numpy": np.__version__}
-    for name in ("numba", "graphviz", "gymnasium", "stable_baselines3"):
-        module = sys.modules.get(name)
-        if module is not None and hasattr(module, "__version__"):
-            out[name] = str(module.__version__)
+    out = {"mitlc": __version__, "python": platform.python_version()}
+    for name in ("numpy", "numba", "lark", "graphviz", "gymnasium", "stable-baselines3", "torch"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
     out["platform"] = platform.platform()
     return out
 
