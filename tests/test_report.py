@@ -295,7 +295,7 @@ def test_sweep_report_links_each_cell(tmp_path):
     assert not (out / "report.html").exists()
 
 
-def test_no_report_removes_ours_and_keeps_a_users(tmp_path):
+def test_no_report_removes_ours_and_never_touches_a_users(tmp_path):
     d = tmp_path / "d"
     common = ("train", "--spec", P2, "--runs", 1, "--trials", 2, "--no-race", "-q", "--out", d)
     assert run(*common).exit_code == 0 and (d / "report.html").is_file()
@@ -304,8 +304,18 @@ def test_no_report_removes_ours_and_keeps_a_users(tmp_path):
     assert not (d / "report.html").exists()  # it showed a training the folder no longer holds
     assert not (d / "curves.csv").exists()
     (d / "report.html").write_text("my notes\n")
+    (d / "curves.csv").write_text("my curves\n")
     assert run(*common, "--no-plots").exit_code == 0
     assert (d / "report.html").read_text() == "my notes\n"  # not ours: never removed
+    r = run(*common)  # nor replaced, by the pages kept up while training or by the report at the end
+    assert r.exit_code == 0 and "warning: no report: " in r.output and "not a report mitlc wrote" in r.output
+    assert (d / "report.html").read_text() == "my notes\n" and (d / "curves.csv").read_text() == "my curves\n"
+    res = run("report", d)
+    assert res.exit_code == 2 and res.output == (
+        f"{d / 'report.html'}: error: report.html there is not a report mitlc wrote, and mitlc replaces only "
+        "its own: move it away\n"
+    )
+    (d / "report.html").unlink()
     res = run("report", d)
     assert res.exit_code == 0 and res.output.startswith(f"wrote {d / 'report.html'} in ")
 

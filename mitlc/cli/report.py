@@ -71,22 +71,19 @@ def folder_kind(folder: Path) -> str:
 def write_report(folder: str | Path) -> Path:
     """Write ``folder/report.html`` (atomically) and return its path."""
     from mitlc.cli.reports import REPORT, report_html
+    from mitlc.cli.reports.page import is_report
 
     folder = Path(folder)
-    data = KINDS[folder_kind(folder)][1](folder)
     path = folder / REPORT
+    kind = folder_kind(folder)
+    if path.exists() and not is_report(path):  # the user's file of that name: never replaced
+        raise InputError(
+            f"{REPORT} there is not a report mitlc wrote, and mitlc replaces only its own: move it away",
+            file=str(path),
+        )
+    data = KINDS[kind][1](folder)
     atomic_write(path, report_html(data), str(path))
     return path
-
-
-def _ours(path: Path) -> bool:
-    """Whether ``path`` is a report mitlc wrote (its generator line), which a new result replaces."""
-    try:
-        with path.open("rb") as f:
-            head = f.read(600)
-    except OSError:
-        return False
-    return b'<meta name="generator" content="mitlc report">' in head
 
 
 def after_training(out: Path | str | None, enabled: bool) -> None:
@@ -120,6 +117,7 @@ def after_failed_training(out: Path, live: Any) -> None:
     training's, go."""
     from mitlc.cli.reports import REPORT
     from mitlc.cli.reports.live import CURVES, is_ours
+    from mitlc.cli.reports.page import is_report
 
     if live is None or live.written < 0:  # it wrote nothing there
         return
@@ -128,7 +126,7 @@ def after_failed_training(out: Path, live: Any) -> None:
     try:
         write_report(out)
     except Exception:  # no earlier training there (or none a report can be made of): no report
-        if _ours(out / REPORT):
+        if is_report(out / REPORT):
             (out / REPORT).unlink(missing_ok=True)
 
 
@@ -137,10 +135,11 @@ def after_command(out: Path, enabled: bool) -> None:
     written, or, ``enabled`` false, what an earlier run left of ours removed."""
     from mitlc.cli.reports import REPORT
     from mitlc.cli.reports.live import CURVES, is_ours
+    from mitlc.cli.reports.page import is_report
 
     path = out / REPORT
     if not enabled:  # what an earlier training of the folder left shows a training it no longer holds
-        if _ours(path):
+        if is_report(path):
             path.unlink(missing_ok=True)
         if is_ours(out / CURVES):
             (out / CURVES).unlink(missing_ok=True)
@@ -156,7 +155,7 @@ def after_command(out: Path, enabled: bool) -> None:
                 err=True,
             )
         try:
-            if _ours(path):
+            if is_report(path):
                 path.unlink()
         except OSError:
             pass

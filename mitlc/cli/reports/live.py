@@ -82,12 +82,14 @@ class LiveCurves:
     def write(self, returns: np.ndarray) -> None:
         """``curves.csv`` brought up to ``returns`` ``(R, T)`` (the first time whole, then appended to),
         and the page of the training in progress."""
-        from mitlc.cli.reports.page import report_html
+        from mitlc.cli.reports.page import REPORT, is_report, report_html
         from mitlc.cli.reports.training import progress_data
 
         path = self.out / CURVES
         runs, done = returns.shape
-        if self.written < 0 or not is_ours(path):
+        if path.exists() and not is_ours(path):  # the user's file of that name: never replaced
+            self.written = max(self.written, 0)
+        elif self.written < 0 or not is_ours(path):
             head = f"{MARK} the return of each run per trial, as mitlc train goes\n"
             head += "trial," + ",".join(f"run_{r}" for r in range(runs)) + "\n"
             atomic_write(path, head + _rows(returns, 0, done), str(path))
@@ -95,8 +97,10 @@ class LiveCurves:
             with path.open("a", encoding="utf-8") as f:
                 f.write(_rows(returns, self.written, done))
         self.written = done
-        page = report_html(progress_data(self.out, self.title, returns, self.total, RELOAD_S))
-        atomic_write(self.out / "report.html", page, str(self.out / "report.html"))
+        page = self.out / REPORT
+        if not page.exists() or is_report(page):
+            html = report_html(progress_data(self.out, self.title, returns, self.total, RELOAD_S))
+            atomic_write(page, html, str(page))
 
 
 def read_curves(path: Path) -> np.ndarray:

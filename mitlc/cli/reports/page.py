@@ -16,9 +16,10 @@ import json
 import math
 from collections.abc import Callable
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
-__all__ = ["REPORT", "BODIES", "report_html", "embed_json", "viridis"]
+__all__ = ["REPORT", "BODIES", "GENERATOR", "is_report", "report_html", "embed_json", "viridis"]
 
 REPORT = "report.html"
 """The report's file name in the folder it describes."""
@@ -41,6 +42,21 @@ _RECORDER = """
   };
 })();
 """
+
+
+GENERATOR = '<meta name="generator" content="mitlc report">'
+"""The line that makes a ``report.html`` mitlc's (:func:`is_report`)."""
+
+
+def is_report(path: Path) -> bool:
+    """Whether ``path`` is a page mitlc wrote (so mitlc may replace or remove it); a user's file of that
+    name is never touched."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(600)
+    except OSError:
+        return False
+    return GENERATOR.encode() in head
 
 
 def _asset(name: str) -> str:
@@ -91,7 +107,7 @@ def _page(title: str, body: str, data: Any, script: bool, reload_s: int | None =
         "<head>",
         '<meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        '<meta name="generator" content="mitlc report">',
+        GENERATOR,
         f'<meta http-equiv="refresh" content="{int(reload_s)}">' if reload_s else "",
         f"<title>{_e(title)}</title>",
         f"<script>{_RECORDER}</script>",
