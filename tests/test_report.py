@@ -290,6 +290,9 @@ def test_sweep_report_links_each_cell(tmp_path):
     records = json.loads((out / "results.json").read_text())["results"]
     for rec in records:
         assert f"<code>{rec['task']}</code>" in page  # every task's record under its configuration
+    if CHROMIUM is not None:  # and it opens cleanly
+        dom, console = open_in_chromium(out / "report.html", "", tmp_path / "profile")
+        assert console == [] and dom.errors == "" and dom.root.get("data-ready") == "1"
     assert run("sweep", P2, "--grid", "sigma=1,3", "--seeds", 1, "--runs", 2, "--trials", 5, "--workers", 1, "-q",
                "--out", out, "--no-report").exit_code == 0  # fmt: skip
     assert not (out / "report.html").exists()
