@@ -413,6 +413,7 @@ def train(
             settings=hyrl_settings,
             plots=not no_plots,
             resume=resume_dir,
+            report=not (no_report or no_plots),
         )
         return
     if learner == "sac":
