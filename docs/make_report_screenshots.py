@@ -42,6 +42,7 @@ def screenshot(page: Path, fragment: str, out: Path, size: str, profile: Path) -
             "--headless",
             "--no-sandbox",
             "--disable-gpu",
+            "--disable-dev-shm-usage",  # a container's small /dev/shm
             "--hide-scrollbars",
             f"--user-data-dir={profile}",
             f"--window-size={size}",

@@ -206,6 +206,7 @@ def open_in_chromium(page: Path, fragment: str, profile: Path) -> tuple[_Dom, li
         "--headless",
         "--no-sandbox",  # as root in a container, and harmless elsewhere: the page is our own file
         "--disable-gpu",
+        "--disable-dev-shm-usage",  # a container's small /dev/shm
         "--no-first-run",
         f"--user-data-dir={profile}",
         "--enable-logging=stderr",
