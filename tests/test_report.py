@@ -247,6 +247,26 @@ def test_the_report_in_headless_chromium(training, tmp_path):
 
 
 @needs_chromium
+def test_a_counting_place_shows_its_count_in_chromium(tmp_path):
+    """--violations counted: a counting place holds more than one token; the page shows the runtime's count.
+    A weak motor cannot stop the pendulum swinging through the bottom again and again (3 s, two runs: 3 and
+    5 times here)."""
+    spec = tmp_path / "swing.mitl"
+    spec.write_text(
+        "plant pendulum(u_max = 1)\ninit q in [2.4, pi], qdot = 0\nhorizon 3\n"
+        "prop bottom = abs(q) > 3.0\nformula G !bottom\n"
+    )
+    out = tmp_path / "counted"
+    args = ("--violations", "counted", "--runs", 2, "--trials", 1, "--no-race", "-q", "--out", out)
+    assert run("train", "--spec", spec, *args).exit_code == 0
+    names, M = runtime_markings(out)
+    run_, step = (int(v) for v in np.argwhere(M.max(axis=2) >= 2)[0][:2])  # the first step with a count of 2
+    dom, console = open_in_chromium(out / "report.html", f"#run={run_}&step={step}", tmp_path / "profile")
+    assert console == [] and dom.errors == ""
+    assert dom.places == {n: int(M[run_, step, i]) for i, n in enumerate(names)} and max(dom.places.values()) >= 2
+
+
+@needs_chromium
 def test_the_browser_check_sees_a_script_error(training, tmp_path):
     """A page whose data breaks its script: the same check fails (the test above can fail)."""
     page = (training / "report.html").read_text(encoding="utf-8")
