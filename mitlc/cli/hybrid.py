@@ -223,12 +223,11 @@ def train_hybrid_cli(
         if not s.requirements:
             raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
         learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
+    from mitlc.cli.report import after_training
     from mitlc.cli.train import _same_folder, output_set
 
     continuing = resume is not None and out is not None and _same_folder(Path(out), Path(resume))
     outset = output_set(None if out is None else Path(out), s, continuing).open()  # an unwritable folder fails now
-    from mitlc.cli.report import after_training
-
     try:
         metrics = _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots)
     except SystemExit:  # interrupted, the set written: its report says so
