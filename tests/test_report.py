@@ -311,6 +311,13 @@ def test_sweep_report_links_each_cell(tmp_path):
     records = json.loads((out / "results.json").read_text())["results"]
     for rec in records:
         assert f"<code>{rec['task']}</code>" in page  # every task's record under its configuration
+    from mitlc.cli.reports.live import LiveSweep
+
+    LiveSweep(out, every_s=0)()  # the page while a sweep runs: the same, reloading itself
+    live = (out / "report.html").read_text(encoding="utf-8")
+    assert '<meta http-equiv="refresh" content="15">' in live and "sweep in progress" in live
+    assert set(re.findall(r'<td class="cell"[^>]*><a href="#(cfg-\d+)"', live)) == anchors
+    (out / "report.html").write_text(page, encoding="utf-8")
     if CHROMIUM is not None:  # and it opens cleanly
         dom, console = open_in_chromium(out / "report.html", "", tmp_path / "profile")
         assert console == [] and dom.errors == "" and dom.root.get("data-ready") == "1"

@@ -29,6 +29,7 @@ __all__ = [
     "after_training",
     "after_sweep",
     "live_curves",
+    "live_sweep",
     "folder_kind",
     "KINDS",
 ]
@@ -96,8 +97,21 @@ def after_training(out: Path | str | None, enabled: bool) -> None:
 
 
 def after_sweep(out: Path | str, enabled: bool) -> None:
-    """The end of ``mitlc sweep``: as :func:`after_training`, for the sweep's folder."""
+    """The end of ``mitlc sweep`` (or its interruption): as :func:`after_training`, for the sweep's
+    folder; nothing when it holds no results yet (interrupted before the first task)."""
+    if enabled and not (Path(out) / "results.json").is_file():
+        return
     after_command(Path(out), enabled)
+
+
+def live_sweep(out: Path, enabled: bool):
+    """What ``mitlc sweep`` calls after each finished task (:class:`mitlc.cli.reports.live.LiveSweep`):
+    the page of the sweep so far, kept up in ``out``; None without a report."""
+    if not enabled:
+        return None
+    from mitlc.cli.reports.live import LiveSweep
+
+    return LiveSweep(out)
 
 
 def live_curves(out: Path, spec: object, total: int, enabled: bool):

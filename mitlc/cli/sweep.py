@@ -204,6 +204,10 @@ def sweep(
         engine.check()  # a clear error before anything runs: Ray installed, and an address where it answers
 
     bar: dict[str, Any] = {}
+    from mitlc.cli.report import after_sweep, live_sweep
+
+    report = not (no_report or no_plot)
+    live = live_sweep(out, report)  # the page of the tasks finished so far (mitlc docs report)
 
     def on_start(total: int, done: int) -> None:
         click.echo(
@@ -217,12 +221,15 @@ def sweep(
         shown = " ".join(f"{a.name}={v}" for a, v in zip(plan.axes, task.labels, strict=True))
         rate = record["success_rate"]
         bar["bar"].update(f"{shown} seed {task.seed}: " + (f"success {rate:.2f}" if rate is not None else "diverged"))
+        if live is not None:
+            live()
 
     try:
         outcome = run_sweep(plan, out, engine, on_result=on_result, on_start=on_start)
     except KeyboardInterrupt:
         if "bar" in bar:
             bar["bar"].close()
+        after_sweep(out, report)  # the page of the finished tasks, not one that reloads
         click.echo(
             f"interrupted; finished tasks are in {out / 'results.csv'}; run the same command to continue", err=True
         )
@@ -237,9 +244,7 @@ def sweep(
         fig = heatmap_figure(plan, outcome.records)
         if fig is not None:
             atomic_write(out / "sweep.png", png_bytes(fig))
-    from mitlc.cli.report import after_sweep
-
-    after_sweep(out, not (no_report or no_plot))
+    after_sweep(out, report)
     click.echo(
         f"{outcome.finished} tasks run in {outcome.wall_s:.1f} s, {outcome.skipped} done earlier; results in {out}"
     )

@@ -7,6 +7,9 @@ progress: its learning curves so far, reloaded by the browser every :data:`RELOA
 page opened from a file cannot read the folder's other files, so the page itself is what is
 rewritten). When the training ends, ``mitlc train`` writes the full report over it.
 
+A sweep's page is kept up the same way (:class:`LiveSweep`), from the ``results.json`` the sweep
+writes as its tasks finish.
+
 ``curves.csv`` is a scalars file any viewer can follow (``tail -f``, a spreadsheet, pandas): a
 first comment line that says what it is, a header ``trial,run_0,...,run_{R-1}``, then one line
 per trial (1-based) with each run's return (``nan`` where a run diverged).
@@ -22,7 +25,7 @@ import numpy as np
 
 from mitlc.fileio import atomic_write
 
-__all__ = ["LiveCurves", "CURVES", "MARK", "EVERY_S", "RELOAD_S", "is_ours"]
+__all__ = ["LiveCurves", "LiveSweep", "CURVES", "MARK", "EVERY_S", "RELOAD_S", "is_ours"]
 
 CURVES = "curves.csv"
 MARK = "# mitlc learning curves:"
@@ -101,6 +104,37 @@ class LiveCurves:
         if not page.exists() or is_report(page):
             html = report_html(progress_data(self.out, self.title, returns, self.total, RELOAD_S))
             atomic_write(page, html, str(page))
+
+
+class LiveSweep:
+    """The page of a sweep in progress, kept up in its folder ``out``: after a task finishes, at most
+    every ``every_s`` seconds (the first time ``every_s`` after the sweep started), ``report.html`` is
+    made from the ``results.json`` written so far, and reloads itself every :data:`RELOAD_S` seconds;
+    ``mitlc sweep`` writes the final page over it at its end."""
+
+    def __init__(self, out: Path, every_s: float = EVERY_S) -> None:
+        self.out = Path(out)
+        self.every_s = float(every_s)
+        self.last = time.monotonic()
+
+    def __call__(self) -> None:
+        from mitlc.cli.reports.page import REPORT, is_report, report_html
+        from mitlc.cli.reports.sweep import sweep_data
+        from mitlc.errors import MitlError
+
+        now = time.monotonic()
+        if now - self.last < self.every_s:
+            return
+        self.last = now
+        page = self.out / REPORT
+        if not (self.out / "results.json").is_file() or (page.exists() and not is_report(page)):
+            return
+        try:
+            data = sweep_data(self.out)
+            data["reload_s"] = RELOAD_S
+            atomic_write(page, report_html(data), str(page))
+        except (OSError, ValueError, MitlError):  # pragma: no cover - a full disk: the sweep's own writes say it
+            pass
 
 
 def read_curves(path: Path) -> np.ndarray:

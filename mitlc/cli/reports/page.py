@@ -286,4 +286,4 @@ def report_html(data: dict[str, Any]) -> str:
     if kind == "training":
         page_data = {k: v for k, v in data.items() if k != "net_svg"}
         return _page(title, BODIES[kind](data), page_data, script=True, reload_s=data.get("reload_s"))
-    return _page(title, BODIES[kind](data), {"kind": kind}, script=False)
+    return _page(title, BODIES[kind](data), {"kind": kind}, script=False, reload_s=data.get("reload_s"))

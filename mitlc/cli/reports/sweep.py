@@ -162,6 +162,12 @@ def sweep_body(d: dict[str, Any]) -> str:
         f"<span>runs per task <b>{_e(h.get('runs', '–'))}</b></span>",
         f"<span>trials per run <b>{_e(h.get('trials', '–'))}</b></span>",
         "</div>",
+        (
+            f'<p class="notes">sweep in progress: the tasks finished so far. This page reloads every '
+            f"{d['reload_s']} s; when the sweep ends, the full report replaces it.</p>"
+            if d.get("reload_s")
+            else ""
+        ),
         "<h2>Success over the grid</h2>",
         _heat(d),
         "<h2>The grid</h2>",
