@@ -52,6 +52,7 @@ PAGES = (
     "docs/monitor.md",
     "docs/sweep.md",
     "docs/verify.md",
+    "docs/report.md",
 )
 
 # What a page may show that depends on the machine: the seconds a training took.

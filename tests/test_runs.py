@@ -132,7 +132,10 @@ def test_the_default_out_is_numbered_and_never_lands_on_another_run(tmp_path, mo
     r1 = run("train", "--spec", a, *common)
     assert r1.exit_code == 0 and r1.output.strip().endswith("results in runs/p2_avoid_1"), r1.output
     first = {p.name: p.read_bytes() for p in Path("runs/p2_avoid_1").iterdir()}
-    assert set(first) == {"manifest.json", "metrics.json", "params.npz", "learning_curve.png", "rollout.png"}
+    assert set(first) == {"manifest.json", "metrics.json", "params.npz", "learning_curve.png", "rollout.png"} | {
+        "report.html",  # not in the manifest: mitlc report writes them, after the set (mitlc docs report)
+        "curves.csv",
+    }
     r2 = run("train", "--spec", b, *common, "--no-plots")
     assert r2.exit_code == 0 and r2.output.strip().endswith("results in runs/p2_avoid_2"), r2.output
     assert run("train", "--spec", a, *common).output.strip().endswith("results in runs/p2_avoid_3")

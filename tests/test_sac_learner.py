@@ -106,6 +106,7 @@ def test_the_output_set_holds_a_model_per_run_and_sacpns_metrics(trained: Path) 
         "learning_curve.png",
         "manifest.json",
         "metrics.json",
+        "report.html",
         "rollout.png",
         "sac_000.zip",
         "sac_001.zip",

@@ -198,9 +198,11 @@ def train_hybrid_cli(
     n_init: int = 50,
     plots: bool = True,
     resume: str | Path | None = None,
+    report: bool = False,
 ) -> dict:
     """Train HyRL on a classical-performance spec (a path or a parsed spec) and write
-    ``metrics.json``, ``params.npz``, ``learning_curve.png`` and ``rollout.png`` to ``out``.
+    ``metrics.json``, ``params.npz``, ``learning_curve.png`` and ``rollout.png`` to ``out``
+    (and, with ``report``, ``report.html``: :mod:`mitlc.cli.report`).
 
     ``trials`` counts all trials, those of a ``resume`` directory's checkpoint
     included (its spec, runs, seed and settings are used); ``out`` None is a new
@@ -221,14 +223,20 @@ def train_hybrid_cli(
         if not s.requirements:
             raise InputError("the spec has no 'require' statement: train it with SACPN (mitlc train)", file=s.path)
         learner = HybridLearner(s, settings or HyrlSettings(), runs=runs, seed=seed)
+    from mitlc.cli.report import after_training
     from mitlc.cli.train import _same_folder, output_set
 
     continuing = resume is not None and out is not None and _same_folder(Path(out), Path(resume))
     outset = output_set(None if out is None else Path(out), s, continuing).open()  # an unwritable folder fails now
     try:
-        return _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots)
+        metrics = _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots)
+    except SystemExit:  # interrupted, the set written: its report says so
+        after_training(outset.out, report)
+        raise
     finally:
         outset.close()
+    after_training(outset.out, report)
+    return metrics
 
 
 def _train_hybrid_into(outset, learner, s, runs, trials, progress, n_init, plots) -> dict:

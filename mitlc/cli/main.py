@@ -40,6 +40,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "List the documentation pages, or print the one called PAGE (e.g. semantics, commands/train).",
     ),
     "plants": ("plants", "plants", "List the plants a spec's 'plant NAME' line can name."),
+    "report": (
+        "report",
+        "report",
+        "Write DIR/report.html: a training's or a sweep's folder as one self-contained HTML page.",
+    ),
     "simulate": (
         "train",
         "simulate",

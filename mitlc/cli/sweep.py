@@ -136,7 +136,8 @@ def _no_value() -> float:
     help="standard or trial reading of nested intervals for every task (the same as --grid option.clock=VALUE).",
 )
 @click.option("--list", "list_only", is_flag=True, help="Print every grid name with its current value and exit.")
-@click.option("--no-plot", is_flag=True, help="Skip sweep.png.")
+@click.option("--no-plot", is_flag=True, help="Skip sweep.png (and the report).")
+@click.option("--no-report", is_flag=True, help="Skip report.html, the sweep as one HTML page (mitlc docs report).")
 @click.option(
     "-q", "--quiet", is_flag=True, help="No progress on stderr (a bar on a terminal, else a line per 5 % of the tasks)."
 )
@@ -157,6 +158,7 @@ def sweep(
     list_only,
     no_plot,
     quiet,
+    no_report,
 ) -> None:
     """Train SPEC over a grid of trainer settings, weights and options, several seeds each.
 
@@ -202,6 +204,10 @@ def sweep(
         engine.check()  # a clear error before anything runs: Ray installed, and an address where it answers
 
     bar: dict[str, Any] = {}
+    from mitlc.cli.report import after_sweep, live_sweep
+
+    report = not (no_report or no_plot)
+    live = live_sweep(out, report)  # the page of the tasks finished so far (mitlc docs report)
 
     def on_start(total: int, done: int) -> None:
         click.echo(
@@ -215,12 +221,15 @@ def sweep(
         shown = " ".join(f"{a.name}={v}" for a, v in zip(plan.axes, task.labels, strict=True))
         rate = record["success_rate"]
         bar["bar"].update(f"{shown} seed {task.seed}: " + (f"success {rate:.2f}" if rate is not None else "diverged"))
+        if live is not None:
+            live()
 
     try:
         outcome = run_sweep(plan, out, engine, on_result=on_result, on_start=on_start)
     except KeyboardInterrupt:
         if "bar" in bar:
             bar["bar"].close()
+        after_sweep(out, report)  # the page of the finished tasks, not one that reloads
         click.echo(
             f"interrupted; finished tasks are in {out / 'results.csv'}; run the same command to continue", err=True
         )
@@ -235,6 +244,7 @@ def sweep(
         fig = heatmap_figure(plan, outcome.records)
         if fig is not None:
             atomic_write(out / "sweep.png", png_bytes(fig))
+    after_sweep(out, report)
     click.echo(
         f"{outcome.finished} tasks run in {outcome.wall_s:.1f} s, {outcome.skipped} done earlier; results in {out}"
     )

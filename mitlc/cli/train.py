@@ -302,7 +302,8 @@ def _outputs(
     help="Train sigma_frac 0.3 and rbf_width 0.5 straight away, without first racing the exploration designs "
     "(mitlc docs training; --sigma, --set sigma_frac=... or --set rbf_width=... leave that setting out of the race).",
 )
-@click.option("--no-plots", is_flag=True, help="Skip the PNG figures.")
+@click.option("--no-plots", is_flag=True, help="Skip the PNG figures (and the report).")
+@click.option("--no-report", is_flag=True, help="Skip report.html, the training as one HTML page (mitlc docs report).")
 @click.option(
     "--starts",
     "starts_path",
@@ -352,8 +353,10 @@ def train(
     starts_path,
     checkpoint_every,
     quiet,
+    no_report,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
+    from mitlc.cli.report import after_failed_training, after_training, live_curves
     from mitlc.learn.checkpoint import check_against, recorded_spec
     from mitlc.learn.sacpn import SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
@@ -423,13 +426,15 @@ def train(
             settings=hyrl_settings,
             plots=not no_plots,
             resume=resume_dir,
+            report=not (no_report or no_plots),
         )
         return
     if learner == "sac":
         options = CompileOptions.from_spec(
             spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward
         )
-        _train_sac(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
+        out = _train_sac(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
+        after_training(out, not (no_report or no_plots))
         return
     trials = TRIALS if trials is None else trials
     settings = _settings_from_options(base, sigma=sigma, mask=mask, saturation=saturation, penalty_ramp=penalty_ramp)
@@ -501,13 +506,22 @@ def train(
         except BaseException:
             outset.close()
             raise
+    report, live = not (no_report or no_plots), None
     try:
-        _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced)
+        live = live_curves(outset.out, spec, trials, report)
+        _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced, live)
+    except SystemExit:  # interrupted, the checkpoint written: the report shows it as interrupted
+        after_training(outset.out, report)
+        raise
+    except BaseException:  # no set of this training written here: the pages it kept up are put right
+        after_failed_training(outset.out, live)
+        raise
     finally:
         outset.close()
+    after_training(outset.out, report)
 
 
-def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> None:
+def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> Path:
     """``mitlc train --learner sac``: :class:`mitlc.gym.sac.SacRuns` into an output set (the models,
     metrics.json as SACPN's, the plots); Ctrl-C saves nothing (no checkpoint to resume)."""
     from mitlc.cli.progress import Progress
@@ -560,6 +574,7 @@ def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) 
         if rate is not None
         else f"no trials run; results in {out}"
     )
+    return out
 
 
 def _sac_outputs(agent, spec, wall_s: float, plots: bool = True) -> tuple[dict[str, bytes | str], dict]:
@@ -648,7 +663,9 @@ def _read_json(path: Path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced=None) -> None:
+def _train_into(
+    outset, agent, spec, trials, wall_before, checkpoint_every, quiet, no_plots, raced=None, live=None
+) -> None:
     from mitlc.cli.progress import Progress, compile_notice
 
     out = outset.out
@@ -662,6 +679,8 @@ def _train_into(outset, agent, spec, trials, wall_before, checkpoint_every, quie
     def progress(trial: int, returns: np.ndarray) -> None:
         interrupt.check()
         bar.update(f"mean return {_mean(agent.returns[:, -10:]):.1f}")
+        if live is not None:  # curves.csv and the page of the training so far (mitlc.cli.reports.live)
+            live(agent)
         now = time.perf_counter()
         if checkpoint_every and now - saved[0] >= checkpoint_every:  # kill -9 loses at most this much
             try:
