@@ -356,9 +356,8 @@ def test_bad_folders_are_one_line(tmp_path):
     (tmp_path / "file.txt").write_text("x")
     cases = {
         tmp_path / "missing": "no such folder",
-        tmp_path
-        / "empty": "not a mitlc training, sweep or verification folder: it has neither metrics.json, results.json nor "
-        "report.json (of mitlc verify)",
+        tmp_path / "empty": "not a mitlc training, sweep or verification folder: it has neither metrics.json, "
+        "results.json nor a report.json of mitlc verify",
         tmp_path / "file.txt": "a file, not a folder",
     }
     for folder, message in cases.items():

@@ -90,7 +90,7 @@ def folder_kind(folder: Path) -> str:
     markers = [marker for marker, _ in KINDS.values()]
     raise InputError(
         "not a mitlc training, sweep or verification folder: it has neither "
-        f"{', '.join(markers[:-1])} nor {markers[-1]} (of mitlc verify)",
+        f"{', '.join(markers[:-1])} nor a {markers[-1]} of mitlc verify",
         file=str(folder),
     )
 
