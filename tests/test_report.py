@@ -533,3 +533,7 @@ def test_verify_no_report_and_a_users_report(verification, tmp_path):
     res = run("report", mine)
     assert res.exit_code == 2 and "not a mitlc training, sweep or verification folder" in res.output
     assert not (mine / "report.html").exists()
+    (mine / "report.json").write_text('{"format": "mitlc-verify", "sampling": [], "space": {}, "counterexamples": []}')
+    res = run("report", mine)
+    assert res.exit_code == 2 and res.output.count("\n") == 1 and "a damaged verification" in res.output
+    assert not (mine / "report.html").exists()

@@ -6,7 +6,9 @@ rollout by the monitor, and reports the satisfied fraction with its exact one-si
 Clopper-Pearson lower bound (:mod:`mitlc.verify.stats`) and the least robust rollout.
 Falsification spends ``--budget`` more rollouts searching the same scenarios for the least
 robust one (:mod:`mitlc.verify.falsify`). The violating rollouts found (the ``--keep`` least
-robust) are written under ``--out`` as traces ``mitlc check`` reads, with a figure each.
+robust) are written under ``--out`` as traces ``mitlc check`` reads, with a figure each, and
+``report.html`` shows the whole verification as one page (:mod:`mitlc.cli.reports.verification`;
+``--no-report`` skips it).
 
 Exit status: 0 when nothing violated the spec and the bound meets ``--require``; 1 when a
 rollout violated it or the bound falls short; 2 on bad input (one line). docs/verify.md.

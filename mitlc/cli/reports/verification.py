@@ -89,6 +89,14 @@ def verification_data(folder: Path) -> dict[str, Any]:
         raise InputError(f"cannot read {MARKER}", file=str(folder))
     if not _is_ours(doc):
         raise InputError(f"{MARKER} is not a mitlc verification's", file=str(folder))
+    for key, kind in (("sampling", dict), ("space", dict), ("counterexamples", list)):
+        if not isinstance(doc.get(key), kind):
+            raise InputError(
+                f"{MARKER}: its {key!r} is not a {kind.__name__}: a damaged verification", file=str(folder)
+            )
+    for key in ("init", "vary", "disturb"):
+        if not isinstance(doc["space"].get(key) or {}, dict):
+            raise InputError(f"{MARKER}: space {key!r} is not a dict: a damaged verification", file=str(folder))
     try:
         spec_source = (folder / "spec.mitl").read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
@@ -118,6 +126,13 @@ def _n(v: Any, digits: int = 4) -> str:
     if not math.isfinite(v):
         return str(v)
     return f"{v:.{digits}g}"
+
+
+def _range(v: Any) -> str:
+    """``[lo, hi]``, as report.json's space holds a range."""
+    if isinstance(v, list) and len(v) == 2:
+        return f"[{_n(v[0])}, {_n(v[1])}]"
+    return str(v)
 
 
 def _signed(v: Any) -> str:
@@ -200,8 +215,8 @@ def verification_body(d: dict[str, Any]) -> str:
         + ". Sampled, not proved: it says nothing of scenarios outside the space below.</p>",
         "<h3>The scenario space</h3>",
     ]
-    rows = [[_e(n), "init", _e(f"[{_n(lo)}, {_n(hi)}]")] for n, (lo, hi) in (space.get("init") or {}).items()]
-    rows += [[_e(n), "--vary", _e(f"[{_n(lo)}, {_n(hi)}]")] for n, (lo, hi) in (space.get("vary") or {}).items()]
+    rows = [[_e(n), "init", _e(_range(v))] for n, v in (space.get("init") or {}).items()]
+    rows += [[_e(n), "--vary", _e(_range(v))] for n, v in (space.get("vary") or {}).items()]
     pieces = space.get("pieces", 1)
     rows += [
         [_e(n), "--disturb", _e(f"[-{_n(e)}, {_n(e)}], constant over each of {pieces} spans")]
