@@ -356,7 +356,8 @@ def test_bad_folders_are_one_line(tmp_path):
     (tmp_path / "file.txt").write_text("x")
     cases = {
         tmp_path / "missing": "no such folder",
-        tmp_path / "empty": "not a mitlc training or sweep folder: it has neither metrics.json nor results.json",
+        tmp_path / "empty": "not a mitlc training, sweep or verification folder: it has neither metrics.json, "
+        "results.json nor a report.json of mitlc verify",
         tmp_path / "file.txt": "a file, not a folder",
     }
     for folder, message in cases.items():
@@ -440,3 +441,99 @@ def test_a_set_not_written_leaves_the_report_of_what_the_folder_holds(tmp_path, 
     data = json.loads(re.search(r'id="report-data">(.*?)</script>', page, re.S).group(1))
     assert data["summary"]["trials"] == 3 and "http-equiv" not in page  # the earlier training's report
     assert not (out / "curves.csv").exists()
+
+
+# ---------------------------------------------------------------- a verification's folder (mitlc verify --out)
+
+P1 = str(ROOT / "specs" / "pendulum" / "p1_swing_up.mitl")
+
+
+@pytest.fixture(scope="module")
+def verification(tmp_path_factory) -> Path:
+    """docs/verify.md's example, small: problem 1 trained briefly, verified with a disturbed input; it finds
+    counterexamples, and mitlc verify writes the folder's report at its end."""
+    base = tmp_path_factory.mktemp("verification")
+    r = run("train", "--spec", P1, "--runs", 2, "--trials", 60, "--no-race", "-q", "--no-plots", "--out", base / "p1")
+    assert r.exit_code == 0, r.output
+    out = base / "d"
+    r = run("verify", "--policy", base / "p1", "--disturb", "u=1", "--pieces", 3, "--samples", 100, "--budget", 60,
+            "--keep", 2, "--out", out)  # fmt: skip
+    assert r.exit_code == 1 and "warning" not in r.output, r.output
+    return out
+
+
+def test_verify_writes_the_verifications_report(verification):
+    import base64
+
+    doc = json.loads((verification / "report.json").read_text())
+    assert doc["format"] == "mitlc-verify" and doc["counterexamples"]
+    page = (verification / "report.html").read_text(encoding="utf-8")
+    assert page.startswith("<!DOCTYPE html>") and page.rstrip().endswith("</html>")
+    assert "http://" not in page and "https://" not in page and "@import" not in page  # no network
+    assert re.findall(r'src="([^"]{0,22})', page) == ["data:image/png;base64,"] * len(doc["counterexamples"])
+    assert (
+        'verify: <span class="bad">FAILED</span>' in page and f"{doc['violating_rollouts']} rollouts violated" in page
+    )
+    bound = re.search(r'<b id="bound">([0-9.]+)</b>', page)
+    assert bound is not None and bound.group(1) == f"{doc['sampling']['lower_bound']:.4f}"
+    s = doc["sampling"]
+    assert f"{s['satisfied']}/{s['samples']}</b>" in page and "<pre># Problem 1 of the thesis" in page
+    f = doc["falsification"]
+    assert f"<td>{f['method']}</td><td class=num>{f['budget']}</td><td class=num>{f['rollouts']}</td>" in page
+    rows = re.findall(r'<tr class="cex-row" id="cex-(\d+)">(.*?)</tr>\s*<tr class="cex-figure">(.*?)</tr>', page, re.S)
+    assert len(rows) == len(doc["counterexamples"])  # one row per counterexample, each with its figure
+    for (k, row, figure), rec in zip(rows, doc["counterexamples"], strict=True):
+        png = base64.b64encode((verification / rec["plot"]).read_bytes()).decode()
+        assert f'src="data:image/png;base64,{png}"' in figure
+        assert f"{rec['robustness']:+.4g}" in row and f"<code>mitlc check d/spec.mitl d/{rec['trace']}</code>" in row
+        d = ", ".join(f"{v:+.4g}" for v in rec["disturbance"]["u"])
+        assert f"d_u = {d}" in row and f"cex_{int(k):03d}.npz" == rec["trace"]
+    before = page.encode()
+    assert write_report(verification).read_bytes() == before  # deterministic
+    res = run("report", verification)  # and mitlc report makes the same page
+    assert res.exit_code == 0 and (verification / "report.html").read_bytes() == before
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium (Debian: apt-get install chromium) opens the page")
+def test_the_verifications_report_in_headless_chromium(verification, tmp_path):
+    dom, console = open_in_chromium(verification / "report.html", "", tmp_path / "profile")
+    assert console == [] and dom.errors == "" and "data-errors" not in dom.root, (console, dom.errors)
+    assert dom.root.get("data-ready") == "1"
+
+
+def test_verify_no_report_and_a_users_report(verification, tmp_path):
+    """--no-report writes none (and removes an earlier verification's page); a user's report.html, or a
+    training's page in a folder that holds a training, is never touched; a user's report.json does not make
+    a folder a verification's."""
+    policy = verification.parent / "p1"
+    common = ("verify", "--policy", policy, "--samples", 5, "--budget", 0)
+    done = (0, 1)  # passed or failed: the policy is a brief training's
+    out = tmp_path / "v"
+    assert run(*common, "--out", out).exit_code in done and (out / "report.html").is_file()
+    assert run(*common, "--out", out, "--no-report").exit_code in done
+    assert not (out / "report.html").exists() and (out / "report.json").is_file()
+    (out / "report.html").write_text("my notes\n")
+    r = run(*common, "--out", out)
+    assert r.exit_code in done and "warning: no report: " in r.output and "not a report mitlc wrote" in r.output
+    assert (out / "report.html").read_text() == "my notes\n"
+    assert run(*common, "--out", out, "--no-report").exit_code in done
+    assert (out / "report.html").read_text() == "my notes\n"
+
+    trained = tmp_path / "t"  # a training's folder (not the policy's) as --out: its page stays
+    assert run("train", "--spec", P1, "--runs", 1, "--trials", 2, "--no-race", "-q", "--out", trained).exit_code == 0
+    page = (trained / "report.html").read_bytes()
+    r = run(*common, "--out", trained)
+    assert r.exit_code in done and "holds a training's results" in r.output
+    assert run(*common, "--out", trained, "--no-report").exit_code in done
+    assert (trained / "report.html").read_bytes() == page
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "report.json").write_text('{"sampling": 1}')
+    res = run("report", mine)
+    assert res.exit_code == 2 and "not a mitlc training, sweep or verification folder" in res.output
+    assert not (mine / "report.html").exists()
+    (mine / "report.json").write_text('{"format": "mitlc-verify", "sampling": [], "space": {}, "counterexamples": []}')
+    res = run("report", mine)
+    assert res.exit_code == 2 and res.output.count("\n") == 1 and "a damaged verification" in res.output
+    assert not (mine / "report.html").exists()

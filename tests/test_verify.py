@@ -213,7 +213,8 @@ def test_counterexamples_are_traces_mitlc_check_rejects(trained, tmp_path, monke
     with np.load(out / "counterexamples.npz") as cex:
         assert cex["x0"].shape == (2, 2) and cex["x0"][0, 0] == pytest.approx(first["start"]["q"])
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["report.json", "spec.mitl", "counterexamples.npz", "cex_000.npz", "cex_000.png", "cex_001.npz", "cex_001.png"]
+        ["report.json", "report.html", "spec.mitl", "counterexamples.npz"]
+        + ["cex_000.npz", "cex_000.png", "cex_001.npz", "cex_001.png"]
     )
 
 

@@ -1,11 +1,12 @@
-"""``mitlc report DIR``: a training's or a sweep's folder as one self-contained HTML page.
+"""``mitlc report DIR``: a training's, a sweep's or a verification's folder as one self-contained HTML page.
 
 ``mitlc report runs/p2_avoid_1`` writes ``runs/p2_avoid_1/report.html``: the spec and its compiled
 reward, the net with its marking along a run's greedy rollout (a slider and play), the state,
 input and propositions beside it, every run's learning curve and their mean, the monitor's verdict
 per run and the settings (:mod:`mitlc.cli.reports`). A sweep's folder gets its grid as a table and
-a heat map of success. ``mitlc train`` and ``mitlc sweep`` write it at their end
-(:func:`after_training`, :func:`after_sweep`) unless ``--no-report``.
+a heat map of success; a verification's (``mitlc verify --out DIR``) its verdict, bound, search and
+counterexamples with their figures. ``mitlc train``, ``mitlc sweep`` and ``mitlc verify`` write it at
+their end (:func:`after_training`, :func:`after_sweep`, :func:`after_verification`) unless ``--no-report``.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ __all__ = [
     "after_failed_training",
     "after_training",
     "after_sweep",
+    "after_verification",
     "live_curves",
     "live_sweep",
     "folder_kind",
@@ -47,13 +49,31 @@ def _sweep(folder: Path) -> dict[str, Any]:
     return sweep_data(folder)
 
 
+def _verification(folder: Path) -> dict[str, Any]:
+    from mitlc.cli.reports.verification import verification_data
+
+    return verification_data(folder)
+
+
+def _is_verification(folder: Path) -> bool:
+    from mitlc.cli.reports.verification import is_verification
+
+    return is_verification(folder)
+
+
 KINDS: dict[str, tuple[str, Callable[[Path], dict[str, Any]]]] = {
     "training": ("metrics.json", _training),
     "sweep": ("results.json", _sweep),
+    "verification": ("report.json", _verification),
 }
 """The folders a report is made of: kind -> (the file that marks such a folder, what gathers its page's
 data, a dict whose ``kind`` picks the page's body in :data:`mitlc.cli.reports.page.BODIES`). Another
-command's folder (a verification's) is an entry here and one there, and :func:`after_command` at its end."""
+command's folder is an entry here and one there, and :func:`after_command` at its end. A marker of a
+common name (``report.json``) marks the folder only when :data:`RECOGNISE` says its content is mitlc's."""
+
+RECOGNISE: dict[str, Callable[[Path], bool]] = {"verification": _is_verification}
+"""kind -> whether the folder's marker is really that command's (a user's ``report.json`` is not a
+verification's)."""
 
 
 def folder_kind(folder: Path) -> str:
@@ -61,22 +81,29 @@ def folder_kind(folder: Path) -> str:
     if not folder.exists():
         raise InputError("no such folder", file=str(folder))
     if not folder.is_dir():
-        raise InputError("a file, not a folder: give the folder mitlc train or mitlc sweep wrote", file=str(folder))
+        raise InputError(
+            "a file, not a folder: give the folder mitlc train, mitlc sweep or mitlc verify wrote", file=str(folder)
+        )
     for kind, (marker, _) in KINDS.items():
-        if (folder / marker).is_file():
+        if (folder / marker).is_file() and RECOGNISE.get(kind, lambda _: True)(folder):
             return kind
-    markers = " nor ".join(marker for marker, _ in KINDS.values())
-    raise InputError(f"not a mitlc training or sweep folder: it has neither {markers}", file=str(folder))
+    markers = [marker for marker, _ in KINDS.values()]
+    raise InputError(
+        "not a mitlc training, sweep or verification folder: it has neither "
+        f"{', '.join(markers[:-1])} nor a {markers[-1]} of mitlc verify",
+        file=str(folder),
+    )
 
 
-def write_report(folder: str | Path) -> Path:
-    """Write ``folder/report.html`` (atomically) and return its path."""
+def write_report(folder: str | Path, kind: str | None = None) -> Path:
+    """Write ``folder/report.html`` (atomically) and return its path: the page of the folder's kind
+    (:func:`folder_kind`), or of ``kind``."""
     from mitlc.cli.reports import REPORT, report_html
     from mitlc.cli.reports.page import is_report
 
     folder = Path(folder)
     path = folder / REPORT
-    kind = folder_kind(folder)
+    kind = kind or folder_kind(folder)
     if path.exists() and not is_report(path):  # the user's file of that name: never replaced
         raise InputError(
             f"{REPORT} there is not a report mitlc wrote, and mitlc replaces only its own: move it away",
@@ -102,6 +129,35 @@ def after_sweep(out: Path | str, enabled: bool) -> None:
     if enabled and not (Path(out) / "results.json").is_file():
         return
     after_command(Path(out), enabled)
+
+
+def after_verification(out: Path | str | None, enabled: bool) -> None:
+    """The end of ``mitlc verify --out DIR``: the verification's page written in ``DIR``, or
+    (``--no-report``) a page of an earlier verification there removed. A folder that holds a training's
+    or a sweep's results too keeps its page (a warning says so); a ``report.html`` mitlc did not write
+    is never touched; a report that cannot be made is a warning (report.json is written already)."""
+    from mitlc.cli.reports import REPORT
+    from mitlc.cli.reports.verification import is_verification_page
+
+    if out is None:
+        return
+    out = Path(out)
+    if not enabled:
+        if is_verification_page(out / REPORT):
+            (out / REPORT).unlink(missing_ok=True)
+        return
+    try:
+        kind = folder_kind(out)
+    except MitlError:
+        kind = None
+    if kind not in (None, "verification"):
+        click.echo(
+            f"warning: no report: {out} holds a {kind}'s results, whose page it keeps "
+            "(give the verification a folder of its own)",
+            err=True,
+        )
+        return
+    after_command(out, True)
 
 
 def live_sweep(out: Path, enabled: bool):
@@ -180,12 +236,13 @@ def after_command(out: Path, enabled: bool) -> None:
 @plant_file_option
 @handle_errors
 def report(folder: str) -> None:
-    """Write DIR/report.html: a training's or a sweep's folder as one self-contained HTML page.
+    """Write DIR/report.html: a training's, a sweep's or a verification's folder as one HTML page.
 
     A training's page shows the spec and its compiled reward, the net with its marking along a
     run's greedy rollout (slider and play), the state, input and propositions, the learning curves,
     the monitor's verdict per run and the settings; a sweep's shows its grid and a heat map of
-    success. One file, opened by double-click: no network."""
+    success; a verification's (mitlc verify --out DIR) its verdict, bound, search and counterexamples
+    with their figures. One file, opened by double-click: no network."""
     start = time.perf_counter()
     path = write_report(folder)
     click.echo(f"wrote {path} in {time.perf_counter() - start:.1f} s")

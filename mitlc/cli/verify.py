@@ -6,7 +6,9 @@ rollout by the monitor, and reports the satisfied fraction with its exact one-si
 Clopper-Pearson lower bound (:mod:`mitlc.verify.stats`) and the least robust rollout.
 Falsification spends ``--budget`` more rollouts searching the same scenarios for the least
 robust one (:mod:`mitlc.verify.falsify`). The violating rollouts found (the ``--keep`` least
-robust) are written under ``--out`` as traces ``mitlc check`` reads, with a figure each.
+robust) are written under ``--out`` as traces ``mitlc check`` reads, with a figure each, and
+``report.html`` shows the whole verification as one page (:mod:`mitlc.cli.reports.verification`;
+``--no-report`` skips it).
 
 Exit status: 0 when nothing violated the spec and the bound meets ``--require``; 1 when a
 rollout violated it or the bound falls short; 2 on bad input (one line). docs/verify.md.
@@ -162,6 +164,10 @@ def _write_counterexamples(folder: Path, spec: Any, space: Any, judged: Any, ord
 
     plant = spec.plant
     (folder / REPORT).unlink(missing_ok=True)  # written last, anew: until then the folder reads as unfinished
+    from mitlc.cli.reports.verification import is_verification_page
+
+    if is_verification_page(folder / "report.html"):  # an earlier verification's page, rewritten at the end
+        (folder / "report.html").unlink(missing_ok=True)
     for old in sorted(folder.iterdir()):  # a previous verification's: they would read as this one's
         if re.fullmatch(r"cex_\d{3,}\.(npz|png)", old.name) and old.is_file():
             old.unlink(missing_ok=True)
@@ -333,10 +339,28 @@ def _check_method(method: str) -> None:
     help="Folder for report.json, counterexamples.npz, the counterexamples' traces (cex_NNN.npz, read by "
     "'mitlc check OUT/spec.mitl OUT/cex_000.npz') and figures; without it nothing is written.",
 )
+@click.option(
+    "--no-report",
+    is_flag=True,
+    help="Skip OUT/report.html, the verification as one HTML page (mitlc docs report).",
+)
 @plant_file_option
 @handle_errors
 def verify(
-    policy_dir, spec_path, samples, budget, method, vary, disturb, pieces, require, confidence, seed, keep, out
+    policy_dir,
+    spec_path,
+    samples,
+    budget,
+    method,
+    vary,
+    disturb,
+    pieces,
+    require,
+    confidence,
+    seed,
+    keep,
+    out,
+    no_report,
 ) -> None:
     """Check a trained policy against its spec: a sampled bound and a search for counterexamples.
 
@@ -417,6 +441,7 @@ def verify(
         )
         atomic_write(folder / SPEC_COPY, spec.source or str(formula) + "\n")
         report = {
+            "format": "mitlc-verify",
             "policy": str(policy_dir),
             "spec": spec.path,
             "formula": str(formula),
@@ -466,6 +491,9 @@ def verify(
                 f"wrote {len(records)} counterexample{'s' if len(records) != 1 else ''} to {folder} "
                 f"(mitlc check {folder / SPEC_COPY} {folder / records[0]['trace']})"
             )
+        from mitlc.cli.report import after_verification
+
+        after_verification(folder, not no_report)
     verdict = "FAILED" if status else "passed"
     click.echo(f"verify: {verdict}" + (f": {'; '.join(reasons)}" if reasons else ""))
     if status:

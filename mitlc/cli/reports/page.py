@@ -273,14 +273,24 @@ def _sweep_body(d: dict[str, Any]) -> str:
     return sweep_body(d)
 
 
-BODIES: dict[str, Callable[[dict[str, Any]], str]] = {"training": _training_body, "sweep": _sweep_body}
+def _verification_body(d: dict[str, Any]) -> str:
+    from mitlc.cli.reports.verification import verification_body
+
+    return verification_body(d)
+
+
+BODIES: dict[str, Callable[[dict[str, Any]], str]] = {
+    "training": _training_body,
+    "sweep": _sweep_body,
+    "verification": _verification_body,
+}
 """A page's kind -> its body's HTML from the gathered data (:data:`mitlc.cli.report.KINDS` gathers it)."""
 
 
 def report_html(data: dict[str, Any]) -> str:
     """The page of a training's (``data["kind"] == "training"``), a sweep's or another kind's data
     (:data:`BODIES`). A training's data go into the page for its script (but for the net's SVG, which is
-    in the page already); a sweep's page is all HTML."""
+    in the page already); a sweep's and a verification's pages are all HTML."""
     kind = data["kind"]
     title = f"{data['title']}: mitlc {kind} report"
     if kind == "training":
