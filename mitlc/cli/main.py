@@ -43,7 +43,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "report": (
         "report",
         "report",
-        "Write DIR/report.html: a training's or a sweep's folder as one self-contained HTML page.",
+        "Write DIR/report.html: a training's, a sweep's or a verification's folder as one HTML page.",
     ),
     "simulate": (
         "train",
