@@ -99,6 +99,8 @@ def train_task(job: tuple) -> dict:
     name, spec_path, seed, runs, trials, sets, options, *more = job
     if more and more[0] == "sac":
         return train_sac_task(job)
+    if more and more[0] == "search":
+        return train_search_task(job)
     from mitlc.cli.train import _judge
     from mitlc.learn.sacpn import SacpnSettings
     from mitlc.learn.settings import parse_assignments
@@ -202,6 +204,52 @@ def train_sac_task(job: tuple) -> dict:
     }
 
 
+def train_search_task(job: tuple) -> dict:
+    """One training of one task by :mod:`mitlc.learn.search` (CMA-ES over a time-varying linear
+    feedback, judged by the monitor; ``trials`` None: its default generations); the record the page reads."""
+    name, spec_path, seed, runs, trials, sets, options, _ = job
+    from mitlc.cli.train import _draw_starts, _judge
+    from mitlc.learn.search import SearchRuns, SearchSettings, default_generations
+    from mitlc.learn.settings import parse_assignments
+    from mitlc.monitor.offline import monitor
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.spec.parse import load_spec
+
+    spec = load_spec(spec_path)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, **dict(options)))
+
+    def judge(states: np.ndarray, dt: float):
+        return monitor(spec, states, dt, spec.monitor_formula)
+
+    agent = SearchRuns(rs, runs, seed, SearchSettings(**parse_assignments(SearchSettings, list(sets))), judge)
+    trials = trials or default_generations(agent.n_steps)
+    t0 = time.perf_counter()
+    agent.train(trials)
+    wall = time.perf_counter() - t0
+    judged = _judge(spec, agent.rollout(agent.evaluation_states()))
+    failing = [str(f) for f in judged.failing if f is not None]
+    fresh = _judge(spec, agent.rollout(_draw_starts(agent.init_ranges, FRESH * runs, seed + 31))).satisfied
+    return {
+        "job": f"{name} seed {seed}",
+        "task": name,
+        "seed": seed,
+        "runs": runs,
+        "trials": trials,
+        "learner": "search",
+        "sets": list(sets),
+        "options": dict(options),
+        "kernel": False,
+        "success": float(np.mean(judged.satisfied)),
+        "fresh": float(np.mean(fresh)),
+        "curve": [],
+        "wall_s": round(wall, 2),
+        "diverged": 0,
+        "race": None,
+        "failing": {f: failing.count(f) for f in sorted(set(failing))},
+        "race_s": 0.0,
+    }
+
+
 def _change_key(sets: tuple[str, ...], options: tuple[tuple[str, str], ...], trials: int | None) -> str:
     text = json.dumps({"sets": sorted(sets), "options": sorted(options), "trials": trials})
     return hashlib.sha256(text.encode()).hexdigest()[:10]
@@ -223,11 +271,16 @@ def run(args: argparse.Namespace) -> dict:
     runs = args.runs or default_runs()
     trials = args.trials or default_trials()
     seeds = tuple(range(args.seeds)) if args.seeds else SEEDS
-    if args.learner == "sac":
-        trials = args.trials  # None: SAC's own default, per task (about 20,000 samples per run)
+    if args.learner in ("sac", "search"):
+        trials = args.trials  # None: the learner's own default, per task
+    if args.learner == "search":  # candidates roll out from chosen starts: not a self-resetting environment
+        skipped = [t.name for t in chosen if t.spec.plant is not None and t.spec.plant.stepped]
+        if skipped:
+            print(f"--learner search: skipping {', '.join(skipped)} (Gymnasium environments)", flush=True)
+        chosen = [t for t in chosen if t.name not in skipped]
     jobs = [(t.name, str(t.spec_path), s, runs, trials, sets, options, args.learner) for t in chosen for s in seeds]
     digest = code_digest(__file__)[:12]
-    key = _change_key(sets, options, args.trials) + ("-sac" if args.learner == "sac" else "")
+    key = _change_key(sets, options, args.trials) + ("" if args.learner == "sacpn" else f"-{args.learner}")
     records, kept = run_cached(
         train_task,
         jobs,
@@ -431,7 +484,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", action="append", default=[], help="a SACPN setting NAME=VALUE (repeat)")
     ap.add_argument("--option", action="append", default=[], help="a compile option NAME=VALUE (repeat)")
     ap.add_argument(
-        "--learner", choices=("sacpn", "sac"), default="sacpn", help="sac: train as mitlc train --learner sac does"
+        "--learner",
+        choices=("sacpn", "sac", "search"),
+        default="sacpn",
+        help="sac: train as mitlc train --learner sac does; search: mitlc.learn.search's CMA-ES policy search",
     )
     ap.add_argument("--jobs", type=int, default=2, help="trainings at once (default 2)")
     ap.add_argument("--results", type=Path, help="write the results here, not docs/suite.json and the page")

@@ -1,0 +1,327 @@
+"""Direct policy search judged by the monitor: CMA-ES over a time-varying linear feedback.
+
+SACPN learns from the net's reward one step at a time; some specs defeat it at every setting
+the task suite tried (docs/suite.md): a cart-pole's pole tips while the Gaussian exploration
+looks for a goal, a unicycle's two inputs never find a corridor's exit. Many of these have a
+simple controller: a state feedback whose gains change over the horizon. This module searches
+for one directly, judging whole rollouts with the spec's own verdict instead of a per-step reward.
+
+The policy of a run, for a plant with state ``x`` (``n`` variables) and ``m`` inputs, is::
+
+    z   = (x - centre) / scale          (an angle's difference wrapped to [-pi, pi) first)
+    tau = t / horizon                    (in [0, 1])
+    phi = [z, 1, tau z, tau]             (2n + 2 features)
+    u   = lo + (tanh(phi W) + 1) / 2 (hi - lo)    (W: (2n + 2, m), each input in its own box)
+
+``centre`` and ``scale`` come from the spec's ``init`` box (its centre and half-widths, at least
+a tenth of the state's half-range, so a variable pinned by ``init`` is still seen on its own
+scale): a gain of 1 moves an input through most of its box for a state anywhere in the init box.
+
+Each run is an independent CMA-ES (Hansen's ``cma`` package: step-size and covariance adaptation
+that a hand-written evolution strategy would only approximate) over the ``(2n + 2) m`` entries of
+``W``, from ``W = 0`` (every input at the centre of its box). A generation rolls each of a run's
+``popsize`` candidates out from the same ``starts`` initial states, drawn afresh from the ``init``
+box by the run's own stream, and judges every rollout with ``judge`` (the monitor, supplied by the
+caller: this stage does not import it). A rollout's score orders, in turn, satisfaction, how late a
+violation came and how near it was to satisfaction:
+
+* satisfied: ``2 + tanh(robustness)`` (in ``[2, 3)``: a larger margin is better);
+* violated:  ``t_v / horizon + tanh(robustness)`` (in ``[-1, 1)``: a violation that comes later,
+  or by less, is better; the time alone would leave a balance task whose pole falls at once
+  and one whose pole falls at the end equal in robustness, the robustness alone every missed
+  deadline equal in time).
+
+A candidate's fitness is the mean score over its starts; CMA-ES uses only the order. All runs and
+candidates of a generation roll out together along the plant's run axis (one ``act``, one plant
+step per sample for the whole batch) and are judged in one call. A run's policy is the mean of its
+search distribution after the last generation (``xfavorite``), which is what it rolls out greedily.
+
+The plant must be one mitlc can put in a chosen state (not a Gymnasium environment that resets
+itself): the search rolls every candidate out from the same starts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from mitlc.errors import InputError, TrainingError
+from mitlc.petri.compile import RewardSystem
+from mitlc.plants.base import make_integrator
+
+__all__ = ["SearchSettings", "SearchRuns", "SearchPolicy", "features", "scores", "default_generations"]
+
+SCALE_FLOOR = 0.1
+"""A variable's scale is at least this share of its state half-range (a variable ``init`` pins)."""
+
+
+def default_generations(n_steps: int) -> int:
+    """Generations per run when ``--trials`` is not given: 100, whatever the horizon (a generation is
+    ``popsize * starts`` rollouts: 6,400 per run at the defaults; 40 and 100 compared on the task
+    suite's tuning half: bench/suite/tuning/8-policy-search-40.json and 9-policy-search.json)."""
+    return 100
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """The search's settings (``--set NAME=VALUE``)."""
+
+    popsize: int = 16
+    """Candidates per generation and run."""
+    starts: int = 4
+    """Initial states each candidate is rolled out from per generation (the same for all of a run's)."""
+    sigma0: float = 0.5
+    """The search's initial step size, in gains of the normalised features."""
+    time_gains: bool = True
+    """Whether the gains may change linearly over the horizon (the features ``tau z`` and ``tau``)."""
+
+    def check(self) -> None:
+        if self.popsize < 4:
+            raise InputError(f"popsize must be at least 4, got {self.popsize}", file="--set")
+        if self.starts < 1:
+            raise InputError(f"starts must be at least 1, got {self.starts}", file="--set")
+        if not (np.isfinite(self.sigma0) and self.sigma0 > 0):
+            raise InputError(f"sigma0 must be a positive number, got {self.sigma0}", file="--set")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> SearchSettings:
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
+
+
+def features(z: np.ndarray, tau: float | np.ndarray, time_gains: bool) -> np.ndarray:
+    """``[z, 1, tau z, tau]`` (``[z, 1]`` without ``time_gains``) for the normalised states ``z`` ``(B, n)``
+    at the horizon's share ``tau`` (one number, or ``(B, 1)``: one per row).
+
+    >>> features(np.array([[0.5, -1.0]]), 0.25, True).tolist()
+    [[0.5, -1.0, 1.0, 0.125, -0.25, 0.25]]
+    >>> features(np.array([[0.5, -1.0]]), 0.25, False).tolist()
+    [[0.5, -1.0, 1.0]]
+    """
+    one = np.ones((z.shape[0], 1))
+    if not time_gains:
+        return np.concatenate([z, one], axis=1)
+    return np.concatenate([z, one, tau * z, tau * one], axis=1)
+
+
+def scores(satisfied: np.ndarray, robustness: np.ndarray, violation_time: np.ndarray, horizon: float) -> np.ndarray:
+    """Each rollout's score (the module's text): satisfied ``2 + tanh(rho)``, violated ``t_v / T + tanh(rho)``.
+
+    >>> s = scores(np.array([True, False, False, False]), np.array([0.5, -0.1, -0.1, -np.inf]),
+    ...            np.array([np.nan, 1.0, 3.0, 3.0]), 4.0)
+    >>> [round(float(v), 4) for v in s]
+    [2.4621, 0.1503, 0.6503, -0.25]
+    """
+    rho = np.nan_to_num(np.asarray(robustness, dtype=float), nan=-np.inf)
+    tv = np.nan_to_num(np.asarray(violation_time, dtype=float), nan=0.0, posinf=horizon, neginf=0.0)
+    late = np.clip(tv / horizon, 0.0, 1.0)
+    return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), late + np.tanh(np.minimum(rho, 0.0)))
+
+
+class _Episode:
+    """The plant, its parameters and the normalisation of a spec's episodes."""
+
+    def __init__(self, rs: RewardSystem) -> None:
+        s = rs.spec
+        plant = s.plant
+        if plant is None or plant.stepped:
+            what = "names no plant" if plant is None else f"is for plant {s.plant_name}, a Gymnasium environment"
+            raise InputError(
+                f"the spec {what}: the policy search rolls candidates out from chosen starts, on mitlc's own plants",
+                file=s.path,
+            )
+        if s.horizon is None:
+            raise InputError("the spec has no 'horizon': the policy search judges whole rollouts", file=s.path)
+        self.plant = plant
+        self.params = plant.params(dict(s.plant_params))
+        self.dt = float(self.params["dt"])
+        self.n_steps = max(1, int(round(s.horizon / self.dt)))
+        self.horizon = self.n_steps * self.dt
+        init = {r.var: (r.lo, r.hi) for r in s.init}
+        self.init_ranges = [init.get(v.name, (0.0, 0.0)) for v in plant.state]
+        lo = np.array([a for a, _ in self.init_ranges])
+        hi = np.array([b for _, b in self.init_ranges])
+        span = np.array([v.hi - v.lo for v in plant.state], dtype=float)
+        self.centre = (lo + hi) / 2
+        self.scale = np.maximum((hi - lo) / 2, SCALE_FLOOR * span / 2)
+        self.periodic = np.array([v.periodic for v in plant.state])
+        box = plant.input_box(self.params)
+        self.u_lo = np.asarray(box[0], dtype=float)
+        self.u_hi = np.asarray(box[1], dtype=float)
+        self.n_inputs = int(self.u_lo.shape[0])
+
+    def normalise(self, x: np.ndarray) -> np.ndarray:
+        d = x - self.centre
+        if self.periodic.any():
+            d[:, self.periodic] = (d[:, self.periodic] + np.pi) % (2 * np.pi) - np.pi
+        return d / self.scale
+
+    def inputs(self, a: np.ndarray) -> np.ndarray:
+        """``(B, m)`` pre-activations to inputs in their boxes (``(B,)`` for one input)."""
+        u = self.u_lo + (np.tanh(a) + 1.0) / 2.0 * (self.u_hi - self.u_lo)
+        return u[:, 0] if self.n_inputs == 1 else u
+
+
+class SearchRuns:
+    """``runs`` independent searches on the plant of ``rs``'s spec (see the module's text).
+
+    ``judge(states, dt)`` returns the monitor's verdict on rollouts ``(B, N + 1, n)``: an object with
+    ``satisfied``, ``robustness`` and ``violation_time`` ``(B,)`` (:func:`mitlc.monitor.monitor`'s
+    result). ``returns`` ``(runs, generations)``: each generation's best fitness per run.
+    :meth:`rollout` rolls row ``b`` out with run ``b % runs``.
+    """
+
+    def __init__(
+        self,
+        rs: RewardSystem,
+        runs: int,
+        seed: int,
+        settings: SearchSettings | None = None,
+        judge: Callable[[np.ndarray, float], Any] | None = None,
+    ) -> None:
+        self.settings = settings or SearchSettings()
+        self.settings.check()
+        if runs < 1:
+            raise InputError(f"runs must be at least 1, got {runs}", file="--runs")
+        self.rs, self.spec, self.runs, self.seed = rs, rs.spec, int(runs), int(seed)
+        self.episode = ep = _Episode(rs)
+        self.plant, self.dt, self.n_steps, self.init_ranges = ep.plant, ep.dt, ep.n_steps, ep.init_ranges
+        self.n_inputs = ep.n_inputs
+        self.judge = judge
+        n = len(ep.init_ranges)
+        self.n_features = (2 * n + 2) if self.settings.time_gains else (n + 1)
+        self.weights: np.ndarray = np.zeros((self.runs, self.n_features, self.n_inputs))
+        self.returns = np.zeros((self.runs, 0))
+        self.trial = 0
+        self._advance = make_integrator(ep.plant, ep.params)
+        self._runtime: Any = None
+
+    # ------------------------------------------------------------------ rolling out
+    def _roll(self, weights: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States ``(B, N + 1, n)`` and inputs of rows ``x0`` ``(B, n)`` under gains ``weights`` ``(B, f, m)``."""
+        ep = self.episode
+        x = np.array(x0, dtype=float)
+        B, N = x.shape[0], self.n_steps
+        states = np.empty((B, N + 1, x.shape[1]))
+        actions = np.empty((B, N) if self.n_inputs == 1 else (B, N, self.n_inputs))
+        states[:, 0] = x
+        with np.errstate(all="ignore"):
+            for k in range(N):
+                phi = features(ep.normalise(x), k * self.dt / ep.horizon, self.settings.time_gains)
+                u = ep.inputs(np.einsum("bf,bfm->bm", phi, weights))
+                self._advance(x, u)
+                states[:, k + 1], actions[:, k] = x, u
+        return states, actions
+
+    def _draw(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        return np.array([[rng.uniform(lo, hi) for lo, hi in self.init_ranges] for _ in range(count)])
+
+    # ------------------------------------------------------------------ training
+    def train(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
+        """``trials`` generations of every run's search; ``progress(done, total)`` after each."""
+        try:
+            import cma
+        except ImportError:
+            raise InputError(
+                "the policy search runs CMA-ES from the cma package: pip install 'mitlc[search]'", file="--learner"
+            ) from None
+        if self.judge is None:
+            raise TrainingError("the policy search needs a judge (the monitor) to train")
+        st = self.settings
+        P, S, R = st.popsize, st.starts, self.runs
+        rngs = [np.random.default_rng([self.seed, r, 0]) for r in range(R)]
+        saved = np.random.get_state()  # cma seeds numpy's global generator: put it back afterwards
+        try:
+            searches = []
+            for r in range(R):
+                seed = int(np.random.SeedSequence([self.seed, r, 2]).generate_state(1)[0]) + 1
+                opts = {"seed": seed, "popsize": P, "verbose": -9}
+                searches.append(cma.CMAEvolutionStrategy(self.weights[r].ravel(), st.sigma0, opts))
+            best = np.zeros((R, trials))
+            for g in range(trials):
+                cand = np.array([s.ask() for s in searches])  # (R, P, dim)
+                x0 = np.stack([self._draw(rngs[r], S) for r in range(R)])  # (R, S, n)
+                W = np.repeat(cand.reshape(R * P, self.n_features, self.n_inputs), S, axis=0)
+                starts = np.repeat(x0, P, axis=0).reshape(R * P * S, -1)
+                states, _ = self._roll(W, starts)
+                verdict = self.judge(states, self.dt)
+                fit = scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon)
+                fit = fit.reshape(R, P, S).mean(axis=2)
+                if not np.all(np.isfinite(fit)):
+                    raise TrainingError(f"the policy search's fitness is not finite in generation {g + 1}")
+                for r in range(R):
+                    searches[r].tell(list(cand[r]), list(-fit[r]))  # cma minimises
+                best[:, g] = fit.max(axis=1)
+                self.trial += 1
+                if progress is not None:
+                    progress(g + 1, trials)
+            self.weights = np.asarray([s.result.xfavorite for s in searches], dtype=float).reshape(self.weights.shape)
+            self.returns = np.concatenate([self.returns, best], axis=1)
+        finally:
+            np.random.set_state(saved)
+
+    # ------------------------------------------------------------------ judging
+    def evaluation_states(self) -> np.ndarray:
+        """One initial state per run, drawn from the ``init`` box by run ``r``'s evaluation stream ``(seed, r, 1)``."""
+        return np.stack([self._draw(np.random.default_rng([self.seed, r, 1]), 1)[0] for r in range(self.runs)])
+
+    @property
+    def runtime(self) -> Any:
+        if self._runtime is None:
+            from mitlc.runtime import NetRuntime
+
+            self._runtime = NetRuntime(self.rs, self.plant.state_names, dt=self.dt, steps=self.n_steps)
+        return self._runtime
+
+    def rollout(self, x0: np.ndarray) -> Any:
+        """Greedy rollouts from ``x0`` ``(B, n)``, row ``b`` by run ``b % runs``, as a
+        :class:`mitlc.learn.sacpn.Rollout` (with the net's markings and compiled rewards along them)."""
+        from mitlc.learn.sacpn import Rollout
+
+        x0 = np.atleast_2d(np.asarray(x0, dtype=float))
+        B = x0.shape[0]
+        states, actions = self._roll(self.weights[np.arange(B) % self.runs], x0)
+        rt = self.runtime
+        codes = np.empty((B, self.n_steps + 1), dtype=np.int64)
+        rewards = np.empty((B, self.n_steps))
+        code = rt.reset_code(states[:, 0].copy())
+        codes[:, 0] = code
+        for k in range(self.n_steps):
+            code1 = rt.step_code(code, states[:, k + 1].copy(), (k + 1) * self.dt)
+            rewards[:, k] = rt.reward_code(code, code1, states[:, k + 1].copy())
+            codes[:, k + 1] = code = code1
+        return Rollout(states, actions, codes, rewards, self.dt)
+
+    def policy(self) -> SearchPolicy:
+        """The trained runs as a :class:`mitlc.learn.policy.Policy`."""
+        return SearchPolicy(self)
+
+
+class SearchPolicy:
+    """A search's runs as a :class:`mitlc.learn.policy.Policy`: its state is the sample count ``(B,)``."""
+
+    def __init__(self, runs: SearchRuns) -> None:
+        self.search = runs
+        self.spec = runs.spec
+        self.runs = runs.runs
+        self.dt = runs.dt
+
+    def reset(self, x0: np.ndarray) -> np.ndarray:
+        return np.zeros(np.atleast_2d(x0).shape[0], dtype=np.int64)
+
+    def act(self, x: np.ndarray, state: np.ndarray) -> np.ndarray:
+        s = self.search
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        W = s.weights[np.arange(x.shape[0]) % s.runs]
+        tau = np.asarray(state, dtype=float)[:, None] * s.dt / s.episode.horizon
+        phi = features(s.episode.normalise(x), tau, s.settings.time_gains)
+        return s.episode.inputs(np.einsum("bf,bfm->bm", phi, W))
+
+    def step(self, state: np.ndarray, x_next: np.ndarray) -> np.ndarray:
+        return np.asarray(state) + 1

@@ -1,0 +1,168 @@
+"""mitlc.learn.search: CMA-ES over a time-varying linear feedback, judged by the monitor. It learns
+a cart-pole balance that SACPN misses at every design (docs/suite.md), it is deterministic by seed
+and leaves numpy's global generator alone, its policy replays its own rollouts, it drives a plant
+with two inputs inside their boxes, its scores order rollouts as its text says, and it refuses
+what it cannot search (a Gymnasium environment, no horizon, bad settings) in one line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mitlc.errors import InputError, TrainingError
+from mitlc.learn.search import SearchRuns, SearchSettings, scores
+from mitlc.monitor.offline import monitor
+from mitlc.petri.compile import compile_spec
+from mitlc.plants.base import make_integrator
+from mitlc.spec.parse import parse_spec
+
+pytest.importorskip("cma")
+
+BALANCE = """plant cartpole
+init x in [-0.5, 0.5], xdot = 0, theta in [-0.15, 0.15], thetadot in [-0.5, 0.5]
+horizon 3
+prop tipped   = abs(theta) > 0.4
+prop on_track = abs(x) < 2.4
+formula G !tipped & G on_track
+"""
+
+EASY = """plant mass-damper
+init q in [-1, -0.5], qdot = 0
+horizon 1
+prop near = abs(q) < 0.2
+formula F[0,0.8] G near
+"""
+
+TWO_INPUTS = """plant unicycle
+init x in [-1.6, -1.2], y in [-0.4, 0.4], theta in [-0.5, 0.5]
+horizon 4
+prop goal = (x - 1.0) * (x - 1.0) + y * y < 0.09
+formula F[0,3.5] G goal
+"""
+
+
+def _runs(text: str, runs: int, seed: int = 0, **kw) -> SearchRuns:
+    spec = parse_spec(text)
+
+    def judge(states: np.ndarray, dt: float):
+        return monitor(spec, states, dt, spec.monitor_formula)
+
+    return SearchRuns(compile_spec(spec), runs, seed, SearchSettings(**kw), judge)
+
+
+def _judge(sr: SearchRuns, x0: np.ndarray) -> np.ndarray:
+    ro = sr.rollout(x0)
+    return monitor(sr.spec, ro.states, ro.dt, sr.spec.monitor_formula).satisfied
+
+
+def test_it_learns_a_cartpole_balance_from_the_whole_init_box() -> None:
+    sr = _runs(BALANCE, 4, seed=3)
+    sr.train(30)
+    assert _judge(sr, sr.evaluation_states()).all()
+    fresh = np.random.default_rng(5).uniform([-0.5, 0, -0.15, -0.5], [0.5, 0, 0.15, 0.5], size=(40, 4))
+    assert _judge(sr, fresh).mean() >= 0.9
+    # the fitness climbed: the best of the last generation beats the first's in every run
+    assert sr.returns.shape == (4, 30)
+    assert np.all(sr.returns[:, -1] > sr.returns[:, 0])
+    assert np.all(sr.returns[:, -1] >= 2.0)  # every run's best candidate satisfied all its starts
+
+
+def test_the_same_seed_gives_the_same_gains_and_numpys_generator_is_left_alone() -> None:
+    np.random.seed(11)
+    before = np.random.get_state()[1].copy()
+    a = _runs(EASY, 2, seed=7)
+    a.train(3)
+    assert np.array_equal(np.random.get_state()[1], before)
+    b = _runs(EASY, 2, seed=7)
+    b.train(3)
+    c = _runs(EASY, 2, seed=8)
+    c.train(3)
+    assert np.array_equal(a.weights, b.weights) and np.array_equal(a.returns, b.returns)
+    assert not np.array_equal(a.weights, c.weights)
+    assert not np.array_equal(a.weights[0], a.weights[1])  # runs search independently
+
+
+def test_the_policy_replays_the_searchs_rollouts_and_the_net_marks_them() -> None:
+    sr = _runs(EASY, 3, seed=1)
+    sr.train(4)
+    x0 = sr.evaluation_states()
+    ro = sr.rollout(x0)
+    pol = sr.policy()
+    x = x0.copy()
+    state = pol.reset(x)
+    advance = make_integrator(sr.plant, sr.episode.params)
+    for k in range(sr.n_steps):
+        u = pol.act(x, state)
+        np.testing.assert_array_equal(u, ro.actions[:, k])
+        advance(x, u)
+        state = pol.step(state, x)
+        np.testing.assert_array_equal(x, ro.states[:, k + 1])
+    # the net's marking codes start where the runtime puts x0 and follow the states
+    rt = sr.runtime
+    np.testing.assert_array_equal(ro.codes[:, 0], rt.reset_code(x0.copy()))
+    assert ro.rewards.shape == (3, sr.n_steps) and np.all(np.isfinite(ro.rewards))
+
+
+def test_a_plant_with_two_inputs_gets_one_gain_column_per_input_inside_its_box() -> None:
+    sr = _runs(TWO_INPUTS, 2, seed=0, popsize=6, starts=2)
+    sr.train(2)
+    n = len(sr.plant.state)
+    assert sr.weights.shape == (2, 2 * n + 2, 2)
+    ro = sr.rollout(sr.evaluation_states())
+    assert ro.actions.shape == (2, sr.n_steps, 2)
+    lo, hi = sr.episode.u_lo, sr.episode.u_hi
+    assert np.all(ro.actions >= lo) and np.all(ro.actions <= hi)
+    assert not np.allclose(ro.actions[..., 0], ro.actions[..., 1])
+
+
+def test_the_features_are_centred_on_the_init_box_and_wrap_an_angle() -> None:
+    sr = _runs("plant pendulum\ninit q in [2.4, pi], qdot = 0\nhorizon 2\nprop up = abs(q) < 0.3\nformula F G up\n", 1)
+    ep = sr.episode
+    centre = (2.4 + np.pi) / 2
+    z = ep.normalise(np.array([[centre, 0.0], [-np.pi + 0.1, 1.0]]))
+    assert z[0].tolist() == [0.0, 0.0]
+    # -pi + 0.1 is 0.1 past pi, near the box's top end: a small positive z, not a large negative one
+    assert z[1, 0] == pytest.approx((np.pi + 0.1 - centre) / ((np.pi - 2.4) / 2))
+    # qdot, pinned at 0 by init, is seen on a tenth of its half-range
+    assert z[1, 1] == pytest.approx(1.0 / (0.1 * (ep.plant.state[1].hi - ep.plant.state[1].lo) / 2))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    rho_s=st.floats(0, 1e6),
+    rho_v=st.floats(-1e6, 0),
+    tv=st.floats(0, 10),
+    later=st.floats(0, 10),
+    worse=st.floats(0, 1e3),
+)
+def test_a_satisfied_rollout_outscores_any_violated_one_and_later_or_nearer_is_better(
+    rho_s: float, rho_v: float, tv: float, later: float, worse: float
+) -> None:
+    T = 10.0
+    sat, vio = scores(np.array([True, False]), np.array([rho_s, rho_v]), np.array([np.nan, tv]), T)
+    assert sat >= 2.0 > vio
+    assert vio >= -1.0
+    (v_later,) = scores(np.array([False]), np.array([rho_v]), np.array([min(T, tv + later)]), T)
+    (v_worse,) = scores(np.array([False]), np.array([rho_v - worse]), np.array([tv]), T)
+    assert v_later >= vio >= v_worse
+
+
+def test_what_it_cannot_search_is_one_line() -> None:
+    gym = parse_spec(
+        "plant gym:Pendulum-v1\nstate q = atan2(obs[1], obs[0]), w = obs[2]\ninit q in [-pi, pi], w in [-1, 1]\n"
+        "horizon 2\nprop up = abs(q) < 0.2\nformula F G up\n"
+    )
+    with pytest.raises(InputError, match="Gymnasium environment"):
+        SearchRuns(compile_spec(gym), 2, 0)
+    with pytest.raises(InputError, match="no 'horizon'"):
+        SearchRuns(compile_spec(parse_spec(EASY.replace("horizon 1\n", ""))), 2, 0)
+    for bad, what in (({"popsize": 2}, "popsize"), ({"starts": 0}, "starts"), ({"sigma0": -1.0}, "sigma0")):
+        with pytest.raises(InputError, match=what) as info:
+            _runs(EASY, 1, **bad)
+        assert "\n" not in str(info.value)
+    with pytest.raises(InputError, match="runs"):
+        _runs(EASY, 0)
+    with pytest.raises(TrainingError, match="judge"):
+        SearchRuns(compile_spec(parse_spec(EASY)), 1, 0).train(1)
