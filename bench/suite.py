@@ -250,6 +250,13 @@ def train_search_task(job: tuple) -> dict:
     }
 
 
+def _trials(data: dict) -> str:
+    """The trials of a run's trainings (None: each learner's own default; a search's are generations)."""
+    if data["trials"] is None:
+        return f"the {data.get('learner', 'sacpn')} learner's default trials"
+    return f"{data['trials']} {'generations' if data.get('learner') == 'search' else 'trials'}"
+
+
 def _change_key(sets: tuple[str, ...], options: tuple[tuple[str, str], ...], trials: int | None) -> str:
     text = json.dumps({"sets": sorted(sets), "options": sorted(options), "trials": trials})
     return hashlib.sha256(text.encode()).hexdigest()[:10]
@@ -421,7 +428,7 @@ def render(data: dict) -> str:
         "**check** half, which only reports.",
         "",
         f"Made by `{data['command']}` on {data['machine']} (code {data['code']}): "
-        f"{data['runs']} runs x {data['trials']} trials per training, seeds {', '.join(map(str, data['seeds']))}"
+        f"{data['runs']} runs x {_trials(data)} per training, seeds {', '.join(map(str, data['seeds']))}"
         + (f"; settings changed: {', '.join(data['sets'])}" if data["sets"] else "")
         + (f"; options: {', '.join(f'{k}={v}' for k, v in data['options'].items())}" if data["options"] else "")
         + ".",

@@ -166,3 +166,62 @@ def test_what_it_cannot_search_is_one_line() -> None:
         _runs(EASY, 0)
     with pytest.raises(TrainingError, match="judge"):
         SearchRuns(compile_spec(parse_spec(EASY)), 1, 0).train(1)
+
+
+def _cli(*args: str):
+    from click.testing import CliRunner
+
+    from mitlc.cli.main import main
+
+    return CliRunner().invoke(main, list(args))
+
+
+def test_mitlc_train_learner_search_writes_a_folder_that_simulate_and_load_policy_read(tmp_path) -> None:
+    import json
+
+    from mitlc.learn.policy import load_policy
+    from mitlc.learn.search import FILE, load_search
+
+    spec = tmp_path / "balance.mitl"
+    spec.write_text(BALANCE)
+    out = tmp_path / "run"
+    r = _cli("train", "--spec", str(spec), "--learner", "search", "--runs", "3", "--trials", "12", "--out", str(out))
+    assert r.exit_code == 0, r.output
+    assert "3 searches x 12 generations" in r.output
+    for name in (FILE, "metrics.json", "manifest.json", "learning_curve.png", "rollout.png"):
+        assert (out / name).is_file(), name
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["learner"] == "search" and m["runs"] == 3 and m["trials"] == 12
+    assert len(m["satisfied"]) == 3 and m["success_rate"] == np.mean(m["satisfied"])
+    # the folder's search is the trained one: the same gains, and the same verdicts from the same starts
+    loaded = load_search(out)
+    again = _runs(BALANCE, 3, seed=0)
+    again.train(12)
+    np.testing.assert_array_equal(loaded.weights, again.weights)
+    assert _judge(loaded, np.array(m["evaluation_starts"])).tolist() == m["satisfied"]
+    pol = load_policy(out)
+    assert pol.runs == 3 and pol.act(np.zeros((2, 4)), pol.reset(np.zeros((2, 4)))).shape == (2,)
+    r = _cli("simulate", "--policy", str(out), "--starts", "train")
+    assert r.exit_code == 0, r.output
+    assert f"{sum(m['satisfied'])}/3 rollouts satisfy" in r.output
+
+
+def test_what_mitlc_train_learner_search_refuses_is_one_line_exit_2(tmp_path) -> None:
+    spec = tmp_path / "easy.mitl"
+    spec.write_text(EASY)
+    for extra, what in (
+        (["--resume", str(tmp_path)], "--resume"),
+        (["--sigma", "0.5"], "--sigma"),
+        (["--no-race"], "--no-race"),
+    ):
+        r = _cli("train", "--spec", str(spec), "--learner", "search", *extra, "--out", str(tmp_path / "o"))
+        assert r.exit_code == 2 and what in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    r = _cli("train", "--spec", str(spec), "--learner", "search", "--set", "popsize=1", "--out", str(tmp_path / "o"))
+    assert r.exit_code == 2 and "popsize" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert not (tmp_path / "o").exists()
+    out = tmp_path / "run"
+    r = _cli("train", "--spec", str(spec), "--learner", "search", "--runs", "2", "--trials", "1", "--out", str(out))
+    assert r.exit_code == 0, r.output
+    (out / "search.npz").write_bytes(b"PK\x03\x04 not a zip")
+    r = _cli("simulate", "--policy", str(out))
+    assert r.exit_code == 2 and "search.npz" in r.output and len(r.output.strip().splitlines()) == 1, r.output

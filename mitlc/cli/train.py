@@ -224,16 +224,17 @@ def _outputs(
     "--trials",
     type=click.IntRange(0, 10**7),
     default=None,
-    help=f"Trials per run (in total, counting trials done before --resume); default {TRIALS}, and for --learner sac "
-    "about 20,000 samples per run.",
+    help=f"Trials per run (in total, counting trials done before --resume); default {TRIALS}, for --learner sac "
+    "about 20,000 samples per run, for --learner search 100 generations.",
 )
 @click.option(
     "--learner",
-    type=click.Choice(["sacpn", "sac"]),
+    type=click.Choice(["sacpn", "sac", "search"]),
     default="sacpn",
     show_default=True,
-    help="sac: Stable-Baselines3's SAC on the same reward, one network per run (needs the sb3 extra; "
-    "mitlc docs training), for tasks SACPN's grid cannot learn; --set takes SacSettings then.",
+    help="sac: Stable-Baselines3's SAC on the same reward, one network per run (needs the sb3 extra); "
+    "search: CMA-ES over a time-varying linear feedback judged by the monitor (needs the search extra); "
+    "both for tasks SACPN's grid cannot learn (mitlc docs training); --set takes their settings then.",
 )
 @click.option(
     "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True, help="Seed of all random numbers."
@@ -365,14 +366,14 @@ def train(
     from mitlc.sweep.task import sacpn_learner
 
     meta = None
-    if learner == "sac":
+    if learner != "sacpn":
         stray = {"--resume": resume_dir, "--sigma": sigma, "--mask": mask, "--saturation": saturation}
         stray.update({"--penalty-ramp": penalty_ramp, "--no-race": no_race or None})
         stray["--preset"] = None if preset == "default" else preset
         for option, value in stray.items():
             if value is not None:
-                what = "SAC trainings keep no checkpoint" if option == "--resume" else "it is SACPN's"
-                raise InputError(f"{option} does not go with --learner sac: {what}", file=option)
+                what = f"{learner.upper()} trainings keep no checkpoint" if option == "--resume" else "it is SACPN's"
+                raise InputError(f"{option} does not go with --learner {learner}: {what}", file=option)
     if starts_path is not None and resume_dir is None:
         raise InputError("--starts guides a resumed training: give --resume DIR too", file="--starts")
     if resume_dir is not None:
@@ -403,9 +404,9 @@ def train(
     for w in spec.warnings:
         click.echo(w, err=True)
     if spec.formula is None and spec.requirements:  # classical criteria: HyRL (docs/hyrl.md)
-        if learner == "sac":
+        if learner != "sacpn":
             raise InputError(
-                "a spec of 'require' criteria trains HyRL; --learner sac takes a formula", file="--learner"
+                f"a spec of 'require' criteria trains HyRL; --learner {learner} takes a formula", file="--learner"
             )
         trials = TRIALS if trials is None else trials
         if starts_path is not None:
@@ -429,11 +430,12 @@ def train(
             report=not (no_report or no_plots),
         )
         return
-    if learner == "sac":
+    if learner != "sacpn":
         options = CompileOptions.from_spec(
             spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward
         )
-        out = _train_sac(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
+        trainer = _train_sac if learner == "sac" else _train_search
+        out = trainer(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
         after_training(out, not (no_report or no_plots))
         return
     trials = TRIALS if trials is None else trials
@@ -530,7 +532,7 @@ def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) 
     for w in rs.warnings:
         click.echo(w, err=True)
     try:
-        from mitlc.gym.sac import SacRuns, SacSettings, default_trials
+        from mitlc.gym.sac import SacRuns, SacSettings, default_trials, model_name
     except ImportError:  # no Gymnasium
         raise InputError(
             "--learner sac trains Stable-Baselines3's SAC through mitlc.gym: pip install 'mitlc[sb3]'",
@@ -562,7 +564,8 @@ def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) 
             sys.exit(130)
         bar.close()
         wall = time.perf_counter() - start
-        files, metrics = _sac_outputs(agent, spec, wall, plots=not no_plots)
+        files = {model_name(r): agent.model_bytes(r) for r in range(agent.runs)}
+        metrics = _runs_outputs(agent, spec, wall, "sac", files, plots=not no_plots)
         out = outset.write(files, trial=agent.trial, seed=seed, runs=runs, wall_s=round(wall, 3))
     finally:
         outset.close()
@@ -577,15 +580,71 @@ def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) 
     return out
 
 
-def _sac_outputs(agent, spec, wall_s: float, plots: bool = True) -> tuple[dict[str, bytes | str], dict]:
-    """The output set of a SAC training, in memory (see :func:`_outputs`): a model per run
-    (``sac_RRR.zip``) and metrics.json with SACPN's keys where they mean the same."""
-    from mitlc.gym.sac import model_name
+def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> Path:
+    """``mitlc train --learner search``: :class:`mitlc.learn.search.SearchRuns` into an output set
+    (search.npz, metrics.json as SACPN's, the plots); Ctrl-C saves nothing (no checkpoint to resume)."""
+    from mitlc.cli.progress import Progress
+    from mitlc.learn.search import FILE, SearchRuns, SearchSettings, default_generations
+    from mitlc.learn.settings import parse_assignments
+
+    for w in rs.warnings:
+        click.echo(w, err=True)
+    try:
+        import cma  # noqa: F401  (the search's optimiser: say so before anything is written)
+    except ImportError:
+        raise InputError(
+            "--learner search runs CMA-ES from the cma package: pip install 'mitlc[search]'", file="--learner"
+        ) from None
+    settings = SearchSettings(**parse_assignments(SearchSettings, assignments))
+
+    def judge(states: np.ndarray, dt: float):
+        from mitlc.monitor.offline import monitor
+
+        return monitor(spec, states, dt, spec.monitor_formula)
+
+    agent = SearchRuns(rs, runs, seed, settings, judge)
+    trials = default_generations(agent.n_steps) if trials is None else trials
+    stem = Path(spec.path or "spec").stem
+    outset = output_set(out, spec).open()
+    try:
+        bar = Progress(trials, 0, desc=stem, quiet=quiet)
+        start = time.perf_counter()
+
+        def progress(done: int, total: int) -> None:
+            interrupt.check()
+            bar.update(f"generation {done}/{total}")
+
+        try:
+            interrupt.check()
+            agent.train(trials, progress)
+        except KeyboardInterrupt:
+            bar.close()
+            click.echo("interrupted: a search keeps no checkpoint, nothing saved", err=True)
+            sys.exit(130)
+        bar.close()
+        wall = time.perf_counter() - start
+        files: dict[str, bytes | str] = {FILE: agent.file_bytes()}
+        metrics = _runs_outputs(agent, spec, wall, "search", files, plots=not no_plots)
+        out = outset.write(files, trial=agent.trial, seed=seed, runs=runs, wall_s=round(wall, 3))
+    finally:
+        outset.close()
+    rate = metrics.get("success_rate")
+    click.echo(
+        f"{runs} searches x {agent.trial} generations in {wall:.1f} s; "
+        f"success rate {rate:.2f} (one evaluation start per run; monitor: {spec.monitor_formula}); results in {out}"
+        if rate is not None
+        else f"no generations run; results in {out}"
+    )
+    return out
+
+
+def _runs_outputs(agent, spec, wall_s: float, learner: str, files: dict, plots: bool = True) -> dict:
+    """Add a SAC or search training's metrics.json (SACPN's keys where they mean the same) and plots
+    to its output set ``files`` (its models or search file already in it); the metrics."""
     from mitlc.learn.plots import learning_curve, png_bytes
 
-    files: dict[str, bytes | str] = {model_name(r): agent.model_bytes(r) for r in range(agent.runs)}
     metrics: dict = {
-        "learner": "sac",
+        "learner": learner,
         "spec": spec.path,
         "spec_source": spec.source or "",
         "formula": str(spec.formula),
@@ -598,20 +657,23 @@ def _sac_outputs(agent, spec, wall_s: float, plots: bool = True) -> tuple[dict[s
         "trials": agent.trial,
         "seed": agent.seed,
         "settings": agent.settings.to_dict(),
-        "gamma": agent.gamma,
+        "gamma": getattr(agent, "gamma", None),
         "wall_s": round(wall_s, 3),
         "run_steps": int(agent.runs * agent.trial * agent.n_steps),
         "interrupted": False,
         "diverged": [],
         "returns": agent.returns.round(6),
     }
+    if learner == "search":  # its returns are each generation's best fitness (mitlc.learn.search.scores)
+        metrics["returns_are"] = "the best candidate's fitness per generation"
     if agent.trial > 0:
         _judge_greedy(agent, spec, metrics, files, plots)
         if plots:
-            fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} SAC runs")
+            what = "SAC runs" if learner == "sac" else "searches (best fitness per generation)"
+            fig = learning_curve(agent.returns, title=f"{Path(spec.path or 'spec').stem}: {agent.runs} {what}")
             files["learning_curve.png"] = png_bytes(fig)
     files["metrics.json"] = json_text(metrics)
-    return files, metrics
+    return metrics
 
 
 def _same_folder(a: Path, b: Path) -> bool:
@@ -840,10 +902,11 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
         return
     policy_dir = policy_dirs[0]
     ckpt = Path(policy_dir) / PARAMS
-    if not ckpt.is_file() and _read_json(Path(policy_dir) / "metrics.json").get("learner") == "sac":
+    kind = _read_json(Path(policy_dir) / "metrics.json").get("learner") if not ckpt.is_file() else None
+    if kind in ("sac", "search"):
         if len(policy_dirs) > 1:
             raise InputError("only HyRL policies (classical criteria) run composed; give one policy", file="--policy")
-        _simulate_sac(policy_dir, spec_path, rollouts, seed, starts, plot_path, trace_path)
+        _simulate_sac(policy_dir, spec_path, rollouts, seed, starts, plot_path, trace_path, kind)
         return
     if not ckpt.is_file():
         raise InputError(
@@ -912,6 +975,24 @@ def _check_outputs(plot_path: str | None, trace_path: str | None) -> None:
 def _trained_on(meta: dict, spec) -> str:
     """``''`` when ``spec`` is the one the policy was trained on, else a note that the verdicts are ``spec``'s."""
     return "" if spec.source == meta["spec_source"] else ", here by --spec"
+
+
+def _runs_learner(folder, kind: str):
+    """The learner of a ``--learner sac`` or ``--learner search`` training folder."""
+    if kind == "search":
+        from mitlc.learn.search import load_search
+
+        return load_search(folder)
+    try:
+        from mitlc.gym import load_policy
+    except ImportError:  # no Gymnasium
+        raise InputError(
+            "a --learner sac training is loaded by Stable-Baselines3: pip install 'mitlc[sb3]'", file=str(folder)
+        ) from None
+    agent = getattr(load_policy(folder), "learner", None)
+    if agent is None:  # pragma: no cover - the caller saw metrics.json say sac; a folder changed since
+        raise InputError("not a --learner sac training", file=str(folder))
+    return agent
 
 
 def _draw_starts(init_ranges, n: int, seed: int) -> np.ndarray:
@@ -985,18 +1066,11 @@ def _write_traces(ro, names, trace_path, plant=None) -> None:
     click.echo(f"wrote {n} trace{'s' if n > 1 else ''}: {paths[0]}{f' .. {paths[-1]}' if n > 1 else ''}")
 
 
-def _simulate_sac(folder, spec_path, rollouts, seed, starts, plot_path, trace_path) -> None:
-    """``simulate`` of a ``mitlc train --learner sac`` folder: its runs' models on the spec they were
-    trained on (:func:`mitlc.gym.load_policy`), judged and printed as a SACPN policy is."""
-    try:
-        from mitlc.gym import load_policy
-    except ImportError:  # no Gymnasium
-        raise InputError(
-            "a --learner sac training is loaded by Stable-Baselines3: pip install 'mitlc[sb3]'", file=str(folder)
-        ) from None
-    agent = getattr(load_policy(folder), "learner", None)
-    if agent is None:  # pragma: no cover - the caller saw metrics.json say sac; a folder changed since
-        raise InputError("not a --learner sac training", file=str(folder))
+def _simulate_sac(folder, spec_path, rollouts, seed, starts, plot_path, trace_path, kind: str = "sac") -> None:
+    """``simulate`` of a ``mitlc train --learner sac`` (or ``search``) folder: its runs on the spec they
+    were trained on (:func:`mitlc.gym.load_policy`, :func:`mitlc.learn.search.load_search`), judged and
+    printed as a SACPN policy is."""
+    agent = _runs_learner(folder, kind)
     trained = agent.spec
     spec = _load(spec_path) if spec_path is not None else trained
     if starts == "train" and rollouts not in (None, agent.runs):

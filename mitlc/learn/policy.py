@@ -156,6 +156,10 @@ def load_policy(directory: str | Path) -> Policy:
             "a --learner sac training (Stable-Baselines3 models): mitlc.gym.load_policy(directory) loads it",
             file=str(directory),
         )
+    if not ckpt.is_file() and (Path(directory) / "search.npz").is_file():
+        from mitlc.learn.search import load_search
+
+        return load_search(directory).policy()
     if not ckpt.is_file():
         raise InputError(f"no {PARAMS} in {directory} (train first with 'mitlc train --out DIR')", file=str(directory))
     meta = read_meta(ckpt)

@@ -49,10 +49,25 @@ from typing import Any
 import numpy as np
 
 from mitlc.errors import InputError, TrainingError
+from mitlc.learn.policy import Policy
 from mitlc.petri.compile import RewardSystem
 from mitlc.plants.base import make_integrator
 
-__all__ = ["SearchSettings", "SearchRuns", "SearchPolicy", "features", "scores", "default_generations"]
+__all__ = [
+    "SearchSettings",
+    "SearchRuns",
+    "SearchPolicy",
+    "features",
+    "scores",
+    "default_generations",
+    "load_search",
+    "FILE",
+]
+
+FILE = "search.npz"
+"""A search's file in its training folder: the gains per run, the fitness per generation and a ``meta``
+record (JSON text: the spec, the settings, runs, seed, generations, the plant's record)."""
+MAX_META_CHARS = 1 << 22
 
 SCALE_FLOOR = 0.1
 """A variable's scale is at least this share of its state half-range (a variable ``init`` pins)."""
@@ -192,6 +207,7 @@ class SearchRuns:
         self.rs, self.spec, self.runs, self.seed = rs, rs.spec, int(runs), int(seed)
         self.episode = ep = _Episode(rs)
         self.plant, self.dt, self.n_steps, self.init_ranges = ep.plant, ep.dt, ep.n_steps, ep.init_ranges
+        self.params = ep.params
         self.n_inputs = ep.n_inputs
         self.judge = judge
         n = len(ep.init_ranges)
@@ -302,8 +318,90 @@ class SearchRuns:
         """The trained runs as a :class:`mitlc.learn.policy.Policy`."""
         return SearchPolicy(self)
 
+    # ------------------------------------------------------------------ files
+    def file_bytes(self) -> bytes:
+        """The search as :data:`FILE`'s bytes (plain arrays and a JSON record: no code)."""
+        import io
+        import json
 
-class SearchPolicy:
+        from mitlc.plants.user import plant_record
+
+        meta = {
+            "kind": "search",
+            "runs": self.runs,
+            "seed": self.seed,
+            "trial": self.trial,
+            "settings": self.settings.to_dict(),
+            "spec_source": self.spec.source or "",
+            "spec_path": self.spec.path or "",
+            "plant": plant_record(self.spec.plant_name or ""),
+            "conjunction": self.rs.options.conjunction,
+            "violations": self.rs.options.violations,
+            "clock": self.rs.options.clock,
+            "reward": self.rs.options.reward,
+        }
+        buf = io.BytesIO()
+        np.savez(buf, weights=self.weights, returns=self.returns, meta=np.array(json.dumps(meta)))
+        return buf.getvalue()
+
+
+def _damaged(where: str, why: str) -> InputError:
+    return InputError(f"damaged search file: {why}", file=where)
+
+
+def load_search(folder: Any) -> SearchRuns:
+    """The :class:`SearchRuns` a ``mitlc train --learner search`` folder holds (its :data:`FILE`),
+    on the spec it was trained on; every field checked before use, a damaged file is one line."""
+    import json
+    from pathlib import Path
+
+    from mitlc.npzfile import NpzArchive
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.plants.user import restore_plant
+    from mitlc.spec.parse import parse_spec
+
+    path = Path(folder) / FILE
+    where = str(path)
+    if not path.is_file():
+        raise InputError(f"no {FILE} in {folder}: not a --learner search training", file=str(folder))
+    with NpzArchive(path, "search file") as z:
+        for name in ("meta", "weights", "returns"):
+            if name not in z:
+                raise _damaged(where, f"no '{name}' record")
+        head = z.header("meta")
+        if head.dtype.kind != "U" or head.shape != () or head.dtype.itemsize // 4 > MAX_META_CHARS:
+            raise _damaged(where, "its 'meta' record is not a JSON text")
+        try:
+            meta = json.loads(str(z.read("meta", head.nbytes)[()]))
+        except (ValueError, RecursionError):
+            raise _damaged(where, "its 'meta' record is not JSON") from None
+        if not isinstance(meta, dict) or meta.get("kind") != "search":
+            raise _damaged(where, "its 'meta' record is not a search's")
+        try:
+            runs, seed, trial = (int(meta[k]) for k in ("runs", "seed", "trial"))
+            settings = SearchSettings.from_dict(dict(meta["settings"]))
+            settings.check()
+            source, spec_path = str(meta["spec_source"]), str(meta["spec_path"])
+        except (KeyError, TypeError, ValueError, InputError) as exc:
+            raise _damaged(where, f"its 'meta' record is incomplete ({type(exc).__name__}: {exc})") from None
+        wh, rh = z.header("weights"), z.header("returns")
+        limit = 1 << 30
+        if wh.dtype.kind != "f" or rh.dtype.kind != "f" or len(wh.shape) != 3 or rh.shape != (runs, trial):
+            raise _damaged(where, f"arrays of shapes {wh.shape} and {rh.shape} do not fit {runs} runs x {trial}")
+        weights, returns = z.read("weights", limit), z.read("returns", limit)
+    restore_plant(meta.get("plant"), path.parent, where=where)
+    spec = parse_spec(source, spec_path or None)
+    options = CompileOptions.from_spec(
+        spec, **{k: meta.get(k) for k in ("conjunction", "violations", "clock", "reward")}
+    )
+    search = SearchRuns(compile_spec(spec, options), runs, seed, settings)
+    if weights.shape != search.weights.shape or not np.isfinite(weights).all():
+        raise _damaged(where, f"its gains have shape {weights.shape}, not {search.weights.shape}, or are not finite")
+    search.weights, search.returns, search.trial = np.asarray(weights, float), np.asarray(returns, float), trial
+    return search
+
+
+class SearchPolicy(Policy):
     """A search's runs as a :class:`mitlc.learn.policy.Policy`: its state is the sample count ``(B,)``."""
 
     def __init__(self, runs: SearchRuns) -> None:

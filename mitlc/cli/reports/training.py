@@ -139,16 +139,10 @@ def _agent(folder: Path, metrics: dict) -> tuple[Any, Any, list[str]]:
     """The learner the folder holds, the spec it was trained on and notes for the page (a HyRL
     training: no learner, and its spec's text)."""
     notes: list[str] = []
-    if metrics.get("learner") == "sac":
-        try:
-            from mitlc.gym import load_policy
-        except ImportError:  # no Gymnasium
-            raise InputError(
-                "a --learner sac training is loaded by Stable-Baselines3: pip install 'mitlc[sb3]'", file=str(folder)
-            ) from None
-        agent = getattr(load_policy(folder), "learner", None)
-        if agent is None:
-            raise InputError("not a --learner sac training", file=str(folder))
+    if metrics.get("learner") in ("sac", "search"):
+        from mitlc.cli.train import _runs_learner
+
+        agent = _runs_learner(folder, metrics["learner"])
         return agent, agent.spec, notes
     from mitlc.learn.checkpoint import read_meta, recorded_spec, restore_plant
     from mitlc.learn.policy import load_sacpn
