@@ -96,7 +96,7 @@ def write_csv(path: Path, n: int) -> None:
             )
 
 
-def run_check(trace: Path, reader: str) -> tuple[float, float]:
+def run_check(trace: Path, reader: str, *options: str) -> tuple[float, float]:
     """Wall seconds and peak RSS (MiB) of one whole ``mitlc check`` process with ``reader``'s CSV reader."""
     code = (  # VmHWM, the peak RSS of this process's own memory: ru_maxrss would keep the bench's across exec
         "import resource, sys\nfrom mitlc.cli.main import main\n"
@@ -108,7 +108,11 @@ def run_check(trace: Path, reader: str) -> tuple[float, float]:
     env = {**os.environ, "PYTHONPATH": str(ROOT), READER_ENV: reader}
     t0 = time.perf_counter()
     r = subprocess.run(
-        [sys.executable, "-c", code, "check", SPEC, str(trace)], env=env, capture_output=True, text=True, check=False
+        [sys.executable, "-c", code, "check", *options, SPEC, str(trace)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
     )
     wall = time.perf_counter() - t0
     if r.returncode not in (0, 1) and "samples (rows), the most supported" not in r.stderr:
@@ -136,13 +140,19 @@ def main() -> None:
             print(f"{n:>10} {old:>9.3f} {new:>9.3f} {fast:>9.3f} {old / new:>10.1f} {new / fast:>14.1f}")
         small = Path(tmp) / "trace_100000.csv"
         print()
+        bare = statistics.median(
+            timed(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 1) for _ in range(3)
+        )
+        print(f"python -c 'import numpy':              {bare:.3f} s (the start-up floor)")
         for reader in readers:
             walls = [run_check(small, reader)[0] for _ in range(max(3, args.repeat))]
+            wall = statistics.median(walls)
             print(
-                f"whole mitlc check, 100k rows, {reader:>7}: {statistics.median(walls):.3f} s (median of {len(walls)})"
+                f"whole mitlc check, 100k rows, {reader:>7}: {wall:.3f} s (median of {len(walls)}), "
+                f"{wall / bare:.2f} x the floor"
             )
-        bare = [timed(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 1) for _ in range(3)]
-        print(f"python -c 'import numpy':              {statistics.median(bare):.3f} s (the start-up floor)")
+        walls = [run_check(small, readers[0], "--net")[0] for _ in range(max(3, args.repeat))]
+        print(f"whole mitlc check --net, 100k rows:     {statistics.median(walls):.3f} s (median of {len(walls)})")
         for p in Path(tmp).glob("*.csv"):
             p.unlink()
         if args.big:
