@@ -40,7 +40,6 @@ import numpy as np
 from mitlc.cachefiles import cache_folder, untrusted
 from mitlc.fileio import save_npz
 from mitlc.petri.compile import RewardSystem
-from mitlc.petri.export import to_dict
 from mitlc.runtime.tables import Tables
 
 __all__ = ["cached_tables", "tables_key"]
@@ -63,6 +62,7 @@ def tables_key(rs: RewardSystem) -> str:
     less the spec's file name: the same spec elsewhere has the same tables), the atoms' order, the
     charge, whether the reward is graded, mitlc's version and the file format."""
     from mitlc import __version__
+    from mitlc.petri.export import to_dict  # only for tables worth keeping
 
     net = {k: v for k, v in to_dict(rs, matrices="arcs").items() if k != "spec"}
     extra = {"atoms": rs.atoms, "charge": str(rs.charge), "graded": rs.grader is not None}
