@@ -220,10 +220,19 @@ class MitlNetEnv:
             reward = float(self._paid.step(self._trace[k : k + 1], done)[0])
         info = self._info()
         if done:  # the whole episode's verdict, with when and why it failed
-            if self._verdict_mode != "off":
-                self._add_verdict(info)
             if self._online is not None:
-                self._online_update(xs)
+                satisfied, robustness = self._online_update(xs)
+                if satisfied:  # the offline monitor's verdict to the bit, and nothing failed
+                    info["verdict"] = {
+                        "satisfied": True,
+                        "robustness": robustness,
+                        "violation_time": None,
+                        "failing": None,
+                    }
+                else:
+                    self._add_verdict(info)
+            elif self._verdict_mode != "off":
+                self._add_verdict(info)
         elif self._online is not None:
             self._add_online_verdict(info, xs)
         return reward, info

@@ -546,6 +546,14 @@ def _pred(p: P.Pred, columns: dict[str, int]) -> PredFn1:
     if isinstance(p, P.Compare):
         reads = [_operand(o, columns) for o in p.operands]
         links = [(_COMPARE[op], _margin(op)) for op in p.ops]
+        if len(links) == 1:  # one comparison: its margin is the robustness (min with inf)
+            (cmp1, margin1), fa, fb = links[0], reads[0], reads[1]
+
+            def compare1(x: Sequence[float]) -> tuple[bool, float]:
+                a, b = fa(x), fb(x)
+                return cmp1(a, b), margin1(a, b)
+
+            return compare1
 
         def compare(x: Sequence[float]) -> tuple[bool, float]:
             values = [f(x) for f in reads]
@@ -562,8 +570,8 @@ def _pred(p: P.Pred, columns: dict[str, int]) -> PredFn1:
             return lambda x: ((a := fl(x))[0] & (b := fr(x))[0], min(a[1], b[1]))
         return lambda x: ((a := fl(x))[0] | (b := fr(x))[0], max(a[1], b[1]))
     if isinstance(p, P.PNot):
-        fa = _pred(p.arg, columns)
-        return lambda x: (not (a := fa(x))[0], -a[1])
+        inner = _pred(p.arg, columns)
+        return lambda x: (not (a := inner(x))[0], -a[1])
     raise InputError(f"'{p}' is a number, not a condition")
 
 
