@@ -615,14 +615,20 @@ class ScalarOnlineMonitor:
         self.k = -1
         self._truth: dict[str, list[bool]] = {n: [] for n in self._names}
         self._rob: dict[str, list[float]] = {n: [] for n in self._names}
-        self._truths = [self._truth[n] for n in self._names]
-        self._robs = [self._rob[n] for n in self._names]
+        self._sinks = [(pred, self._truth[n], self._rob[n]) for n, pred in zip(self._names, self._preds, strict=True)]
         self._bool = _Engine(_BOOL, self._truth)
         self._real = _Engine(_REAL, self._rob)
         self._root_bool = _Plan(self._bool).at(self._root, 0)
         self._root_real = _Plan(self._real).at(self._root, 0)
         self.satisfied = False
         self.robustness = 0.0
+
+    def _push(self, x: Sequence[float]) -> None:
+        """Each proposition's truth and robustness on ``x``, appended to its signals."""
+        for pred, truths, robs in self._sinks:
+            truth, rob = pred(x)
+            truths.append(truth)
+            robs.append(rob)
 
     def update(self, x: Sequence[float]) -> tuple[bool, float]:
         """Add sample ``k + 1``; the verdict and robustness of the prefix so far."""
@@ -640,12 +646,9 @@ class ScalarOnlineMonitor:
                 x[i] = float(wrap_angle(x[i]))  # type: ignore[arg-type]  # on a float: numpy's remainder to the bit
         if self._quiet:  # IEEE arithmetic, as the offline monitor computes it: no warnings
             with np.errstate(all="ignore"):
-                atoms = [pred(x) for pred in self._preds]
+                self._push(x)
         else:
-            atoms = [pred(x) for pred in self._preds]
-        for (truth, rob), truths, robs in zip(atoms, self._truths, self._robs, strict=True):
-            truths.append(truth)
-            robs.append(rob)
+            self._push(x)
         self.k = k = self.k + 1
         self._bool.k = self._real.k = k
         if self._bool.memo:
