@@ -16,7 +16,7 @@ Gymnasium wrapper and ``mitlc check --net`` step; its pieces:
   scalars (what SACPN's compiled trial kernel steps).
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.cachefiles`
-(the tables' disk cache), :mod:`mitlc.spec`, :mod:`mitlc.petri`.
+and :mod:`mitlc.npzfile` (the tables' disk cache), :mod:`mitlc.spec`, :mod:`mitlc.petri`.
 """
 
 from mitlc.runtime.atoms import atom_source, compile_atoms, scalar_atoms

@@ -3,8 +3,9 @@
 Tabulating a net (:func:`mitlc.runtime.tables.build_tables`) fires its rule on every pair of
 marking and atom code; for a net of a few hundred markings that is most of a short ``mitlc check
 --net``. The tables depend on the compiled net alone, so they are kept in mitlc's cache folder
-(``tables/``, :mod:`mitlc.cachefiles`) as data: one ``.npz`` of plain arrays, read with
-``allow_pickle=False`` (reading it runs no code), named by the SHA-256 of the net as data
+(``tables/``, :mod:`mitlc.cachefiles`) as data: one ``.npz`` of plain arrays, read by
+:class:`mitlc.npzfile.NpzArchive` (each array's header checked before its data is read, never
+unpickled: reading it runs no code), named by the SHA-256 of the net as data
 (:func:`tables_key`: the compiled net, mitlc's version and the file's format). A file that is
 missing, unreadable, damaged, not the user's own, or whose arrays do not fit the net is ignored,
 and the tables are built and written again; a cache that cannot be written costs only the time.
@@ -39,6 +40,7 @@ import numpy as np
 
 from mitlc.cachefiles import cache_folder, untrusted
 from mitlc.fileio import save_npz
+from mitlc.npzfile import NpzArchive
 from mitlc.petri.compile import RewardSystem
 from mitlc.runtime.tables import Tables
 
@@ -48,7 +50,8 @@ _FORMAT = "mitlc-reward-tables 1"
 """The file format's name and version, part of every key: a new layout never reads an old file."""
 
 _MAX_BYTES = 256 << 20
-"""A tables file larger than this is not read (``MAX_TABLE`` entries of int64 are 32 MiB)."""
+"""A tables file whose arrays declare more bytes than this is not read (``MAX_TABLE`` entries of
+int64 are 32 MiB)."""
 
 WORTH_KEEPING = 1 << 16
 """Smallest tables kept on disk, in entries (``next_code``'s plus the reward's pairs of codes): building
@@ -103,12 +106,13 @@ def _load(path: Path, rs: RewardSystem, n_codes: int, n_clocks: int) -> tuple[Ta
     if untrusted(path) is not None:
         return None
     try:
-        if path.stat().st_size > _MAX_BYTES:
-            return None
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {name: z[name] for name in z.files}
+        with NpzArchive(path, "reward tables") as z:  # each member's header checked before its data is read
+            names = z.names
+            if set(names) - {*_ARRAYS, "none"} or sum(z.header(n).nbytes for n in names) > _MAX_BYTES:
+                return None
+            arrays = {n: z.read(n, max_bytes=_MAX_BYTES) for n in names}
         return _tables(arrays, rs, n_codes, n_clocks)
-    except Exception:  # a damaged file (a bad zip, a short array): built again
+    except Exception:  # a damaged file (a bad zip, a short array, Python objects): built again
         return None
 
 
