@@ -1,6 +1,6 @@
 """``mitlc check`` on long CSV traces: pyarrow's reader and the chunked numpy one against the old row-by-row one.
 
-Run:  python bench/bench_check.py [--repeat 3] [--big]
+Run:  python bench/bench_check.py [--repeat 3] [--big | --startup]
 
 Writes pendulum traces (columns t, q, qdot at dt = 0.05 s, every number as ``repr`` writes it,
 17 significant digits or so, as ``mitlc simulate --trace`` does) to a temporary directory and prints:
@@ -11,7 +11,36 @@ check`` process on 100k rows with each reader (``MITLC_CSV_READER=numpy`` for nu
 bare ``python -c "import numpy"`` (the floor every start-up pays); with ``--big``, the wall time
 and peak RSS of a whole ``mitlc check`` on the longest trace mitlc reads (``MAX_STEPS + 1`` =
 1,000,001 rows, about 55 MiB of text) and of its refusal one row past the limit, with each reader.
+With ``--startup`` only whole processes, each the fastest of ``--repeat`` (at least 5, interleaved):
+``mitlc check`` on 61 and 100k rows against ``python -c "import numpy"``, ``check --net`` of
+``pendulum/p3_avoid_speed_limit`` (tables too small to keep) on 100k rows, and of
+``pendulum/n1_reach_in_time`` (576 markings) on 61 rows with its tables built in every process
+(``MITLC_CACHE_DIR=``, what ``--net`` did before it kept them) and read from the disk cache
+(:mod:`mitlc.runtime.tablefile`); then n1's ``NetRuntime`` in this process, both ways.
 It prints timings; it asserts nothing about them.
+
+Measured with ``--startup --repeat 7`` on a loaded 2-core machine (Python 3.11, mitlc's ``.pyc``
+written by ``python -m compileall mitlc``: without them, as under ``PYTHONDONTWRITEBYTECODE=1``,
+every process compiles mitlc's modules again, some 0.07 s more), seconds and times the floor:
+
+======================================  =======  ========
+process                                 seconds  x floor
+======================================  =======  ========
+``python -c "import numpy"``              0.110     1.00
+``check``, 61 rows                        0.327     2.97
+``check``, 100k rows, pyarrow             0.315     2.86
+``check``, 100k rows, numpy reader        0.323     2.94
+``check --net`` p3, 100k rows             0.365     3.32
+``check`` n1, 61 rows                     0.282     2.56
+``check --net`` n1, tables built          0.586     5.32
+``check --net`` n1, tables kept           0.359     3.26
+======================================  =======  ========
+
+n1's ``NetRuntime``: tables built 125 ms, read from disk 8 ms. The floor itself moved between 0.11
+and 0.16 s from run to run; in the quietest run (floor 0.159 s) ``check`` on 100k rows was 2.09 x.
+What a short check spends past numpy's import (``python -X importtime``, fastest of 3): lark 20 ms
+and the parse of a spec 19 ms, click 12 ms, pyarrow 26 ms (its reading saves as much on 100k rows),
+mitlc's own modules 35 ms (``mitlc.spec.ast``'s fifteen frozen dataclasses 11 ms of it).
 """
 
 from __future__ import annotations
@@ -26,6 +55,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -96,7 +126,9 @@ def write_csv(path: Path, n: int) -> None:
             )
 
 
-def run_check(trace: Path, reader: str) -> tuple[float, float]:
+def run_check(
+    trace: Path, reader: str, *options: str, spec: str = SPEC, env_extra: dict[str, str] | None = None
+) -> tuple[float, float]:
     """Wall seconds and peak RSS (MiB) of one whole ``mitlc check`` process with ``reader``'s CSV reader."""
     code = (  # VmHWM, the peak RSS of this process's own memory: ru_maxrss would keep the bench's across exec
         "import resource, sys\nfrom mitlc.cli.main import main\n"
@@ -105,10 +137,14 @@ def run_check(trace: Path, reader: str) -> tuple[float, float]:
         "except OSError:\n    hwm = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
         "sys.stderr.write(f'{hwm}\\n')\nsys.exit(code)\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(ROOT), READER_ENV: reader}
+    env = {**os.environ, "PYTHONPATH": str(ROOT), READER_ENV: reader, **(env_extra or {})}
     t0 = time.perf_counter()
     r = subprocess.run(
-        [sys.executable, "-c", code, "check", SPEC, str(trace)], env=env, capture_output=True, text=True, check=False
+        [sys.executable, "-c", code, "check", *options, spec, str(trace)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
     )
     wall = time.perf_counter() - t0
     if r.returncode not in (0, 1) and "samples (rows), the most supported" not in r.stderr:
@@ -116,14 +152,72 @@ def run_check(trace: Path, reader: str) -> tuple[float, float]:
     return wall, int(r.stderr.strip().splitlines()[-1]) / 1024  # VmHWM and ru_maxrss are in KiB on Linux
 
 
+def fastest(fn: Callable[[], float], repeat: int) -> float:
+    """The least of ``repeat`` calls of ``fn`` (seconds): on a shared machine, the start-up's own cost."""
+    return min(fn() for _ in range(repeat))
+
+
+def startup(tmp: Path, repeat: int, readers: list[str]) -> None:
+    """Whole processes, each the fastest of ``repeat`` (interleaved): ``mitlc check`` against the
+    start-up floor ``python -c 'import numpy'``, and ``check --net`` with its net's tables kept on disk
+    against them built in every call (``MITLC_CACHE_DIR=``, as before the tables were kept)."""
+    big, small = tmp / "trace_100000.csv", tmp / "trace_61.csv"
+    write_csv(big, 100_000)
+    write_csv(small, 61)
+    cache = tmp / "cache"
+    kept, built = {"MITLC_CACHE_DIR": str(cache)}, {"MITLC_CACHE_DIR": ""}
+    n1 = str(ROOT / "specs" / "pendulum" / "n1_reach_in_time.mitl")
+    run_check(small, readers[0], "--net", spec=n1, env_extra=kept)  # the tables written once
+    runs: dict[str, Callable[[], float]] = {
+        "python -c 'import numpy'": lambda: timed(
+            lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 1
+        ),
+        "check, 61 rows": lambda: run_check(small, readers[0])[0],
+    }
+    for reader in readers:
+        runs[f"check, 100k rows, {reader}"] = lambda r=reader: run_check(big, r)[0]
+    runs["check --net p3, 100k rows"] = lambda: run_check(big, readers[0], "--net", env_extra=kept)[0]
+    runs["check --net n1, 61 rows, tables built"] = lambda: run_check(
+        small, readers[0], "--net", spec=n1, env_extra=built
+    )[0]
+    runs["check --net n1, 61 rows, tables kept"] = lambda: run_check(
+        small, readers[0], "--net", spec=n1, env_extra=kept
+    )[0]
+    runs["check n1, 61 rows"] = lambda: run_check(small, readers[0], spec=n1)[0]
+    times: dict[str, list[float]] = {name: [] for name in runs}
+    for _ in range(repeat):  # interleaved: a load that comes and goes hits every run alike
+        for name, fn in runs.items():
+            times[name].append(fn())
+    floor = min(times["python -c 'import numpy'"])
+    print(f"whole processes, the fastest of {repeat}:")
+    for name, ts in times.items():
+        print(f"  {name:<42} {min(ts):.3f} s  {min(ts) / floor:5.2f} x the floor")
+    print()
+    sys.path.insert(0, str(ROOT))
+    from mitlc.petri.compile import CompileOptions, compile_spec
+    from mitlc.runtime import NetRuntime
+    from mitlc.spec.parse import load_spec
+
+    rs = compile_spec(load_spec(n1), CompileOptions(violations="permanent"))
+    os.environ["MITLC_CACHE_DIR"] = str(cache)
+    t_built = fastest(lambda: timed(lambda: NetRuntime(rs, dt=DT, steps=60), 1), repeat)
+    t_kept = fastest(lambda: timed(lambda: NetRuntime(rs, dt=DT, steps=60, tables_cache=True), 1), repeat)
+    print(f"n1's NetRuntime (576 markings): tables built {t_built * 1e3:.1f} ms, read from disk {t_kept * 1e3:.1f} ms")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--big", action="store_true", help="also a whole mitlc check on the longest trace (1,000,001 rows)")
+    ap.add_argument("--startup", action="store_true", help="only whole processes: check's start-up and check --net's")
     args = ap.parse_args()
     readers = ["pyarrow", "numpy"] if _pyarrow() is not None else ["numpy"]
     if len(readers) == 1:
         print("(pyarrow is not installed: the numpy reader only)")
+    if args.startup:
+        with tempfile.TemporaryDirectory() as tmp:
+            startup(Path(tmp), max(args.repeat, 5), readers)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         print("CSV reading (t, q, qdot as repr writes them), median seconds:")
         print(f"{'rows':>10} {'old':>9} {'numpy':>9} {'pyarrow':>9} {'old/numpy':>10} {'numpy/pyarrow':>14}")
@@ -136,13 +230,19 @@ def main() -> None:
             print(f"{n:>10} {old:>9.3f} {new:>9.3f} {fast:>9.3f} {old / new:>10.1f} {new / fast:>14.1f}")
         small = Path(tmp) / "trace_100000.csv"
         print()
+        bare = statistics.median(
+            timed(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 1) for _ in range(3)
+        )
+        print(f"python -c 'import numpy':              {bare:.3f} s (the start-up floor)")
         for reader in readers:
             walls = [run_check(small, reader)[0] for _ in range(max(3, args.repeat))]
+            wall = statistics.median(walls)
             print(
-                f"whole mitlc check, 100k rows, {reader:>7}: {statistics.median(walls):.3f} s (median of {len(walls)})"
+                f"whole mitlc check, 100k rows, {reader:>7}: {wall:.3f} s (median of {len(walls)}), "
+                f"{wall / bare:.2f} x the floor"
             )
-        bare = [timed(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 1) for _ in range(3)]
-        print(f"python -c 'import numpy':              {statistics.median(bare):.3f} s (the start-up floor)")
+        walls = [run_check(small, readers[0], "--net")[0] for _ in range(max(3, args.repeat))]
+        print(f"whole mitlc check --net, 100k rows:     {statistics.median(walls):.3f} s (median of {len(walls)})")
         for p in Path(tmp).glob("*.csv"):
             p.unlink()
         if args.big:

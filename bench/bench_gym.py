@@ -1,15 +1,32 @@
-"""The Gymnasium wrapper's cost per step over the bare environment, today against the old path.
+"""The Gymnasium wrapper's cost per step over the bare environment, in each ``verdict`` mode.
 
-Run:  python bench/bench_gym.py [--steps 2000] [--repeat 3] [--spec pendulum/p1_swing_up]
+Run:  python bench/bench_gym.py [--steps 2000] [--repeat 5] [--spec pendulum/p1_swing_up]
 
 Steps ``Pendulum-v1`` (its bare step, unwrapped) and :class:`mitlc.gym.MitlRewardWrapper`
-around it with a constant input, in one process: the wrapper with ``verdict="off"``, ``"end"``
-and ``"step"`` as they are, and the old path of each (before #17: the net stepped on markings,
-``NetRuntime.step`` and ``.reward``, and for ``"step"`` the offline monitor over the whole
-prefix ``x_0 .. x_k`` after every step, which this bench still calls). Episodes are
-truncated at the spec's horizon. It prints the median microseconds per step of
-``--repeat`` runs of ``--steps`` steps, the wrapper's overhead over the bare step, and the
-ratios old / new. It prints timings; it asserts nothing about them.
+around it with a constant input, in one process, the runs of each mode interleaved: the
+wrapper with ``verdict="off"`` (the baseline: the net alone), ``"end"`` and ``"step"`` as they
+are, and ``"step"`` on the array online monitor (:class:`mitlc.monitor.online.OnlineMonitor`,
+what ``"step"`` ran before the one-run monitor :class:`mitlc.monitor.scalar.ScalarOnlineMonitor`).
+Episodes are truncated at the spec's horizon. It prints the median microseconds per step of
+``--repeat`` runs of ``--steps`` steps, the wrapper's overhead over the bare step and that
+overhead over ``"off"``'s. It prints timings; it asserts nothing about them.
+
+Measured (2 cores shared with other jobs, Python 3.11, p1_swing_up, ``F G kappa``, median of 7;
+bare step 11.1), microseconds per step over the bare step:
+
+=====================  =========  ==========
+verdict                overhead   / ``off``
+=====================  =========  ==========
+``off``                     9.7        1.0
+``end``                    13.3        1.4
+``step``                   16.6        1.7
+``step``, array monitor    87.8        9.0
+=====================  =========  ==========
+
+``end`` over ``off`` is the offline monitor once per (violated) episode of 60 steps; ``step`` over
+``end`` the one-run online monitor (1.3 us a sample for ``F G kappa`` alone) and its ``info`` entry.
+Where an episode ends satisfied, ``step`` takes its verdict from the online monitor and skips the
+offline one.
 """
 
 from __future__ import annotations
@@ -23,67 +40,54 @@ import gymnasium as gym
 import numpy as np
 
 from mitlc.gym import MitlRewardWrapper, pendulum_v1_state
+from mitlc.monitor.online import OnlineMonitor
 from mitlc.spec.parse import load_spec
 
 
-def old_path(env: MitlRewardWrapper, verdict: bool) -> Any:
-    """The wrapper's step as it was: markings, not codes; the offline monitor on the prefix."""
-    env._marking_of = None  # noqa: SLF001 - a bench of the wrapper's own internals
-    env._code = None  # noqa: SLF001
-    env._step1 = None  # noqa: SLF001
-    online = env._online  # noqa: SLF001
-    env._online = None  # noqa: SLF001
-    step = env.step
-
-    def stepped(action: Any) -> Any:
-        out = step(action)
-        if verdict and online is not None and not (out[2] or out[3]):
-            env._add_verdict(out[4])  # noqa: SLF001
-        return out
-
-    return stepped
-
-
-def per_step(reset: Any, step: Any, steps: int, repeat: int) -> float:
+def run_once(reset: Any, step: Any, steps: int, seed: int) -> float:
+    """Microseconds per step of ``steps`` steps (a reset when an episode ends)."""
     a = np.array([0.5], dtype=np.float32)
-    times = []
-    for r in range(repeat):
-        reset(seed=r)
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            out = step(a)
-            if out[2] or out[3]:
-                reset()
-        times.append((time.perf_counter() - t0) / steps * 1e6)
-    return statistics.median(times)
+    reset(seed=seed)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        out = step(a)
+        if out[2] or out[3]:
+            reset()
+    return (time.perf_counter() - t0) / steps * 1e6
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=2000)
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--spec", default="pendulum/p1_swing_up")
     args = ap.parse_args()
     spec = load_spec(args.spec)
-    bare = gym.make("Pendulum-v1").unwrapped
-    t_bare = per_step(bare.reset, bare.step, args.steps, args.repeat)
-    print(f"Pendulum-v1 with {args.spec} ({spec.formula}); microseconds per step, median of {args.repeat}")
-    print(f"  bare environment step: {t_bare:8.1f}")
-    print(f"  {'verdict':<8} {'new':>8} {'over bare':>10} {'old':>8} {'over bare':>10} {'old/new':>8}")
-    for verdict in ("off", "end", "step"):
 
-        def make(verdict: str = verdict) -> MitlRewardWrapper:
-            env = gym.make("Pendulum-v1").unwrapped
-            return MitlRewardWrapper(env, spec, pendulum_v1_state, verdict=verdict, truncate_at_horizon=True)
-
-        new = make()
-        t_new = per_step(new.reset, new.step, args.steps, args.repeat)
-        old = make()
-        t_old = per_step(old.reset, old_path(old, verdict == "step"), args.steps, args.repeat)
-        print(
-            f"  {verdict:<8} {t_new:8.1f} {t_new - t_bare:10.1f} {t_old:8.1f} {t_old - t_bare:10.1f} "
-            f"{t_old / t_new:8.1f}"
+    def make(verdict: str) -> MitlRewardWrapper:
+        return MitlRewardWrapper(
+            gym.make("Pendulum-v1").unwrapped, spec, pendulum_v1_state, verdict=verdict, truncate_at_horizon=True
         )
+
+    array = make("step")
+    array._online = OnlineMonitor(spec, array.dt)  # noqa: SLF001 - the monitor "step" ran before
+    array._online_scalar = False  # noqa: SLF001
+    bare = gym.make("Pendulum-v1").unwrapped
+    envs: dict[str, Any] = {"bare": bare, "off": make("off"), "end": make("end"), "step": make("step")}
+    envs["step, array monitor"] = array
+    times: dict[str, list[float]] = {name: [] for name in envs}
+    for r in range(args.repeat):  # interleaved: a load that comes and goes hits every mode alike
+        for name, env in envs.items():
+            times[name].append(run_once(env.reset, env.step, args.steps, r))
+    t = {name: statistics.median(ts) for name, ts in times.items()}
+    off = t["off"] - t["bare"]
+    print(f"Pendulum-v1 with {args.spec} ({spec.formula}); microseconds per step, median of {args.repeat}")
+    print(f"  bare environment step: {t['bare']:8.1f}")
+    print(f"  {'verdict':<20} {'step':>8} {'overhead':>9} {'/ off':>6}")
+    for name in envs:
+        if name != "bare":
+            over = t[name] - t["bare"]
+            print(f"  {name:<20} {t[name]:8.1f} {over:9.1f} {over / off:6.1f}")
 
 
 if __name__ == "__main__":

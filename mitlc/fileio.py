@@ -24,8 +24,6 @@ import io
 import json
 import os
 import re
-import secrets
-import socket
 import stat
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -99,7 +97,7 @@ _LEGACY_TEMP = re.compile(r"\.(?P<name>.+)\.[a-z0-9_]{8}")
 def temp_path(target: Path) -> Path:
     """A new temporary file's name beside ``target``, recognisably mitlc's and its writer's (the pid)."""
     name = target.name[:120]  # the whole name stays well under NAME_MAX
-    return target.parent / f".{name}.{os.getpid()}-{secrets.token_hex(4)}{TEMP_SUFFIX}"
+    return target.parent / f".{name}.{os.getpid()}-{os.urandom(4).hex()}{TEMP_SUFFIX}"
 
 
 def _alive(pid: int) -> bool:
@@ -311,6 +309,12 @@ class LockBusy(Exception):
         self.owner = owner
 
 
+def _hostname() -> str:
+    import socket  # only a lock's owner is named by it: not paid by every start-up
+
+    return socket.gethostname()
+
+
 class FolderLock:
     """An exclusive lock on a folder: ``fcntl.flock`` on its lock file ``path``, held from
     :meth:`acquire` until :meth:`release` (or the process's end: the system drops a dead
@@ -331,7 +335,7 @@ class FolderLock:
         return self._fd is not None or self._linked
 
     def owner_text(self) -> str:
-        return f"{os.getpid()} {socket.gethostname()}\n"
+        return f"{os.getpid()} {_hostname()}\n"
 
     def acquire(self) -> None:
         """Take the lock, or raise :class:`LockBusy`; an :class:`OSError` when the file cannot be
@@ -382,7 +386,7 @@ class FolderLock:
                 owner = _read_path(self.path)
                 pid_text, host = (owner.split() + ["", ""])[:2]
                 pid = int(pid_text) if pid_text.isdigit() else -1
-                if pid > 0 and host == socket.gethostname() and not _alive(pid):
+                if pid > 0 and host == _hostname() and not _alive(pid):
                     _unlink_quietly(self.path)  # its process is gone
                     continue
                 raise LockBusy(owner) from None

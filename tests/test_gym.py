@@ -282,6 +282,34 @@ def test_info_has_the_monitors_verdict_so_far() -> None:
     assert infos[40]["verdict"]["satisfied"] is False
 
 
+@pytest.mark.skipif(not HAS_MONITOR, reason="mitlc.monitor is not there yet")
+@pytest.mark.parametrize(
+    "spec",
+    [
+        "pendulum/p3_avoid_speed_limit",  # constant time: the one-run monitor on floats
+        "pendulum/p4_alternate",  # its check line reads the prefix again: the array monitor
+        "plant pendulum\nhorizon 1\nprop slow = abs(qdot) < 100\nformula G slow",  # satisfied to the end
+    ],
+)
+def test_every_steps_verdict_is_the_offline_monitors(spec: str) -> None:
+    """verdict="step": each prefix's verdict and robustness, and the whole episode's at its end
+    (when and why it failed, or that it did not), are the offline monitor's to the bit."""
+    from mitlc.monitor.offline import monitor
+
+    env = wrapped(parse_spec(spec) if "\n" in spec else spec, truncate_at_horizon=True)
+    assert env._online_scalar is ("p4" not in spec)  # noqa: SLF001 - which monitor the test is about
+    _, observations, _, infos, ends = random_rollout(env, seed=3, steps=int(round(env.mitl_spec.horizon / 0.05)))
+    assert ends[-1] == (False, True)
+    states = np.array([env.state(o["obs"]) for o in observations])
+    for k, info in enumerate(infos):
+        res = monitor(env.mitl_spec, states[: k + 1], PENDULUM_DT)
+        want = {"satisfied": bool(res.satisfied[0]), "robustness": float(res.robustness[0])}
+        if k == len(infos) - 1:
+            t = float(res.violation_time[0])
+            want.update(violation_time=None if math.isnan(t) else t, failing=res.failing[0])
+        assert info["verdict"] == want, k
+
+
 def test_verdict_modes() -> None:
     off = random_rollout(wrapped(P1, verdict="off"), 1, 3)[3]
     assert all("verdict" not in i and "marking" in i for i in off)

@@ -28,7 +28,7 @@ ALLOWED: dict[str, set[str]] = {
     "petri": BASE | {"plants", "spec"},
     "hybrid": BASE | {"plants", "spec"},
     "monitor": BASE | {"npzfile", "plants", "spec"},
-    "runtime": BASE | {"spec", "petri"},
+    "runtime": BASE | {"cachefiles", "npzfile", "spec", "petri"},
     "learn": BASE | {"cachefiles", "npzfile", "plants", "spec", "petri", "hybrid", "runtime"},
     "sweep": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn"},
     "gym": BASE | {"plants", "spec", "petri", "monitor", "runtime", "learn"},

@@ -88,6 +88,18 @@ def test_check_loads_no_heavy_module(tmp_path: Path) -> None:
     assert heavy_in(got["modules"]) == []
 
 
+def test_check_net_loads_only_the_net(tmp_path: Path) -> None:
+    """``check --net`` loads the compiler and the runtime, and of the heavy modules no more (its tables'
+    key reads the net as data: no networkx, which only ``to_networkx`` needs)."""
+    trace = tmp_path / "t.csv"
+    t = (np.arange(61) * 0.05).tolist()
+    trace.write_text("t,q,qdot\n" + "".join(f"{a!r},0.0,0.0\n" for a in t), encoding="utf-8")
+    got = loaded_after(["check", "--net", "pendulum/n1_reach_in_time", str(trace)])
+    assert "net: " in got["out"], got["out"]
+    assert "mitlc.runtime.tablefile" in got["modules"] and "mitlc.petri.export" in got["modules"]
+    assert heavy_in([m for m in got["modules"] if m.split(".")[:2] != ["mitlc", "petri"]]) == []
+
+
 def test_help_lists_every_command_and_imports_none() -> None:
     got = loaded_after(["--help"])
     listed = [line.split()[0] for line in got["out"].split("Commands:\n")[1].splitlines() if line.strip()]

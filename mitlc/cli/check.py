@@ -78,7 +78,7 @@ def _net_view(spec, tr, dt: float) -> dict:
     for i, c in enumerate(cols):
         if plant is not None and plant.var(c).periodic:
             x[:, i] = wrap_angle(x[:, i])
-    rt = NetRuntime(rs, cols, dt=dt, steps=n - 1)
+    rt = NetRuntime(rs, cols, dt=dt, steps=n - 1, tables_cache=True)  # kept on disk: built once per net
     watched: list[str] = []
     stack = [rs.charge] if rs.charge is not None else []
     while stack:

@@ -107,13 +107,19 @@ class MitlNetEnv:
         self.dt = dt
         self.runtime = rt = NetRuntime(rs, self.state_names, dt=dt, steps=steps)
         self._monitor = None
-        self._online = None
+        self._online: Any = None
+        self._online_scalar = False  # a ScalarOnlineMonitor, fed lists of floats
         if verdict != "off":
             try:
                 self._monitor = importlib.import_module("mitlc.monitor").monitor
-                if verdict == "step":  # each prefix's verdict in constant time per step
-                    online = importlib.import_module("mitlc.monitor.online")
-                    self._online = online.OnlineMonitor(spec, dt)
+                if verdict == "step":  # each prefix's verdict in constant time per step, on Python floats
+                    scalar = importlib.import_module("mitlc.monitor.scalar")
+                    self._online = scalar.ScalarOnlineMonitor(spec, dt, columns=self.state_names)
+                    self._online_scalar = True
+                    if not self._online.constant_time:  # the prefix read again: numpy's loops are the faster
+                        online = importlib.import_module("mitlc.monitor.online")
+                        self._online = online.OnlineMonitor(spec, dt)
+                        self._online_scalar = False
             except ImportError:  # the monitor is optional here: no verdict without it
                 self._monitor = self._online = None
         self._verdict_mode = verdict
@@ -171,7 +177,7 @@ class MitlNetEnv:
         info = self._info()
         if self._online is not None:
             self._online.reset()
-            self._add_online_verdict(info, x0)
+            self._add_online_verdict(info, x0.tolist())
         if self._paid is not None:
             self._paid.reset(x0[None, :])
         return info
@@ -214,12 +220,21 @@ class MitlNetEnv:
             reward = float(self._paid.step(self._trace[k : k + 1], done)[0])
         info = self._info()
         if done:  # the whole episode's verdict, with when and why it failed
-            if self._verdict_mode != "off":
-                self._add_verdict(info)
             if self._online is not None:
-                self._online.update({n: self._trace[k : k + 1, i] for n, i in self._judged})
+                satisfied, robustness = self._online_update(xs)
+                if satisfied:  # the offline monitor's verdict to the bit, and nothing failed
+                    info["verdict"] = {
+                        "satisfied": True,
+                        "robustness": robustness,
+                        "violation_time": None,
+                        "failing": None,
+                    }
+                else:
+                    self._add_verdict(info)
+            elif self._verdict_mode != "off":
+                self._add_verdict(info)
         elif self._online is not None:
-            self._add_online_verdict(info, self._trace[k])
+            self._add_online_verdict(info, xs)
         return reward, info
 
     @property
@@ -250,10 +265,16 @@ class MitlNetEnv:
     def _info(self) -> dict[str, Any]:
         return {"marking": self.marking, "tau": self._k * self.dt}
 
-    def _add_online_verdict(self, info: dict[str, Any], x: np.ndarray) -> None:
-        assert self._online is not None
-        v = self._online.update({n: x[i : i + 1] for n, i in self._judged})
-        info["verdict"] = {"satisfied": bool(v.satisfied[0]), "robustness": float(v.robustness[0])}
+    def _online_update(self, x: Sequence[float]) -> tuple[bool, float]:
+        """The online monitor's verdict and robustness after the sample ``x`` (``state_names`` order)."""
+        if self._online_scalar:
+            return self._online.update(x)
+        v = self._online.update({n: np.asarray(x[i : i + 1], dtype=float) for n, i in self._judged})
+        return bool(v.satisfied[0]), float(v.robustness[0])
+
+    def _add_online_verdict(self, info: dict[str, Any], x: Sequence[float]) -> None:
+        satisfied, robustness = self._online_update(x)
+        info["verdict"] = {"satisfied": satisfied, "robustness": robustness}
 
     def _add_verdict(self, info: dict[str, Any]) -> None:
         if self._monitor is None:

@@ -6,7 +6,9 @@ of columns, or files (CSV, ``.npz``: :mod:`mitlc.monitor.trace`). Out:
 the standard finite-trace MITL semantics (docs/monitor.md), and where a trace failed.
 
 :mod:`~mitlc.monitor.offline` evaluates a formula node by node over whole traces with
-the array kernels of :mod:`~mitlc.monitor.kernels`; :mod:`~mitlc.monitor.trace` reads
+the array kernels of :mod:`~mitlc.monitor.kernels`; :mod:`~mitlc.monitor.online` judges
+traces as they grow, and :mod:`~mitlc.monitor.scalar` one growing trace on Python numbers
+(the Gymnasium wrapper's verdict after every step); :mod:`~mitlc.monitor.trace` reads
 recorded traces from files.
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.npzfile`

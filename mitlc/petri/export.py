@@ -17,15 +17,17 @@ from __future__ import annotations
 import json
 import math
 import xml.etree.ElementTree as ET
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import networkx as nx
 import numpy as np
 
 from mitlc.fileio import json_text
 from mitlc.petri import reward as R
 from mitlc.petri.compile import RewardSystem
 from mitlc.spec import ast as A
+
+if TYPE_CHECKING:
+    import networkx as nx
 
 __all__ = [
     "MATRICES",
@@ -388,6 +390,8 @@ def to_networkx(rs: RewardSystem) -> nx.DiGraph:
     >>> g.nodes["t1"], list(g.edges("t1", data=True))
     ({'bipartite': 1, 'guard': '!a', 'subnet': 0}, [('t1', 'p_not_a', {'weight': 1})])
     """
+    import networkx as nx  # only here: the rest of the exports (and mitlc check --net's table key) need none
+
     net = rs.net
     g = nx.DiGraph(formula=str(rs.spec.formula))
     for i, p in enumerate(net.places):

@@ -10,12 +10,13 @@ Gymnasium wrapper and ``mitlc check --net`` step; its pieces:
   source for a compiled kernel, plain Python for one sample);
 * :mod:`~mitlc.runtime.rule`: the firing rule on batches of markings (:class:`~mitlc.runtime.rule.Rule`);
 * :mod:`~mitlc.runtime.tables`: the rule and the reward tabulated over marking, atom and clock codes;
+* :mod:`~mitlc.runtime.tablefile`: those tables kept on disk between processes, as data;
 * :mod:`~mitlc.runtime.obligations`: the timed obligations' per-run state, stepped per sample;
 * :mod:`~mitlc.runtime.obligation_kernel`: the same for one run as flat arrays and plain Python over
   scalars (what SACPN's compiled trial kernel steps).
 
-May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.spec`,
-:mod:`mitlc.petri`.
+May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.cachefiles`
+and :mod:`mitlc.npzfile` (the tables' disk cache), :mod:`mitlc.spec`, :mod:`mitlc.petri`.
 """
 
 from mitlc.runtime.atoms import atom_source, compile_atoms, scalar_atoms

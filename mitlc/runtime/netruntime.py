@@ -108,6 +108,8 @@ class NetRuntime:
         state_names: Sequence[str] | None = None,
         dt: float | None = None,
         steps: int | None = None,
+        *,
+        tables_cache: bool = False,
     ) -> None:
         self.rs = rs
         self.net = net = rs.net
@@ -160,7 +162,13 @@ class NetRuntime:
         # their increments are tabulated per (code, next code) pair
         self.counters = np.array(net.counters, dtype=np.intp)
         self.timed = rs.timed
-        self.tables = build_tables(rule, self._radix, rs)
+        if tables_cache:  # read from the disk cache, else built and written there (mitlc.runtime.tablefile)
+            from mitlc.runtime.tablefile import cached_tables
+
+            radix = self._radix
+            self.tables = cached_tables(rs, lambda: build_tables(rule, radix, rs), radix.n_codes, len(rule.clocks))
+        else:
+            self.tables = build_tables(rule, self._radix, rs)
         self.compact = self.tables is not None and self.tables.compact
         """Whether codes index the reachable markings (compact tables) instead of the mixed radix."""
         self._clock_ends = np.zeros(0)
