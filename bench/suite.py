@@ -101,12 +101,13 @@ def train_task(job: tuple) -> dict:
         return train_sac_task(job)
     if more and more[0] == "search":
         return train_search_task(job)
-    from mitlc.cli.train import _judge
+    from mitlc.cli.train import _judge, _monitor_judge
     from mitlc.learn.sacpn import SacpnSettings
+    from mitlc.learn.search import SearchRuns, SearchSettings
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec
-    from mitlc.sweep.race import greedy_verdicts, race
+    from mitlc.sweep.race import greedy_verdicts, race, search_generations
     from mitlc.sweep.task import sacpn_learner
 
     spec = load_spec(spec_path)
@@ -117,12 +118,28 @@ def train_task(job: tuple) -> dict:
     def build(st: SacpnSettings, r: int, s: int):  # as mitlc train builds one
         return sacpn_learner(rs, st, r, s)
 
+    def searcher(r: int):  # as mitlc train races the policy search: runs 0 .. r - 1 of the training's seed
+        return SearchRuns(rs, r, seed, SearchSettings(), _monitor_judge(spec))
+
     t0 = time.perf_counter()
     given = {a.split("=", 1)[0] for a in sets}
-    raced = race(build, greedy_verdicts, settings, runs, trials, seed, given=given)  # as mitlc train
+    can_search = not sets and not spec.plant.stepped  # as mitlc train: no SACPN setting given, mitlc's own plant
+    raced = race(
+        build,
+        greedy_verdicts,
+        settings,
+        runs,
+        trials,
+        seed,
+        given=given,
+        search=searcher if can_search else None,
+        generations=search_generations(trials),
+    )  # as mitlc train
+    race_s = time.perf_counter() - t0
+    if raced is not None and raced.learner == "search":
+        return _search_won(name, spec, raced, runs, trials, seed, sets, options, t0, race_s)
     if raced is not None:
         settings = raced.settings
-    race_s = time.perf_counter() - t0
     agent = build(settings, runs, seed)
     every = max(1, trials // CURVE_POINTS)
     curve: list[tuple[int, float]] = []
@@ -161,6 +178,51 @@ def train_task(job: tuple) -> dict:
         "failing": {f: failing.count(f) for f in sorted(set(failing))},
         "race_s": round(race_s, 2),
     }
+
+
+def _search_won(name, spec, raced, runs, trials, seed, sets, options, t0, race_s) -> dict:
+    """The rest of a training whose race the policy search won, as ``mitlc train`` goes on: the race's
+    search runs kept, the others searched and joined to them; the record the page reads."""
+    from mitlc.cli.train import _judge
+    from mitlc.learn.search import SearchRuns
+
+    kept = raced.searched
+    agent = kept
+    if runs > kept.runs:
+        rest = SearchRuns(kept.rs, runs - kept.runs, seed, kept.settings, kept.judge, first=kept.runs)
+        rest.train(raced.generations)
+        agent = kept.joined(rest)
+    wall = time.perf_counter() - t0
+    judged = _judge(spec, agent.rollout(agent.evaluation_states()))
+    failing = [str(f) for f in judged.failing if f is not None]
+    fresh = _judge(spec, agent.rollout(_draw_fresh(agent, seed))).satisfied
+    return {
+        "job": f"{name} seed {seed}",
+        "task": name,
+        "seed": seed,
+        "runs": runs,
+        "trials": trials,
+        "learner": "search",
+        "generations": raced.generations,
+        "sets": list(sets),
+        "options": dict(options),
+        "kernel": False,
+        "success": float(np.mean(judged.satisfied)),
+        "fresh": float(np.mean(fresh)),
+        "curve": [],
+        "wall_s": round(wall, 2),
+        "diverged": 0,
+        "race": raced.record(),
+        "failing": {f: failing.count(f) for f in sorted(set(failing))},
+        "race_s": round(race_s, 2),
+    }
+
+
+def _draw_fresh(agent, seed: int) -> np.ndarray:
+    """:data:`FRESH` starts per run from the init box for a search (as the SAC and search records draw them)."""
+    from mitlc.cli.train import _draw_starts
+
+    return _draw_starts(agent.init_ranges, FRESH * agent.runs, seed + 31)
 
 
 def train_sac_task(job: tuple) -> dict:
@@ -436,10 +498,11 @@ def render(data: dict) -> str:
         "**success**: the fraction of runs whose final greedy policy satisfies the spec from the run's",
         "evaluation start (what `mitlc train` prints), the mean over seeds with its 95 % interval;",
         f"**fresh**: the same policies from {FRESH} starts each drawn over the initial set; **trials",
-        f"to {TARGET}**: the first tenth of the training at which the seeds' mean success (from fixed",
-        "starts) reaches it; **s**: a training's wall time, the race included; **witness**: starts its",
-        "rollouts satisfy; **race won by**: the design `mitlc train`'s race chose, per seed",
-        "(docs/training.md, the race).",
+        f"to {TARGET}**: the first tenth of a SACPN training at which the seeds' mean success (from fixed",
+        "starts) reaches it (`-` too where the policy search won a seed's race: it is judged at its",
+        "end only); **s**: a training's wall time, the race included; **witness**: starts its",
+        "rollouts satisfy; **race won by**: the design `mitlc train`'s race chose, per seed: one of",
+        "SACPN's exploration designs or `search`, the policy search (docs/training.md, the race).",
         "",
         "| half | tasks | mean success | tasks >= 0.9 | tasks < 0.5 |",
         "| --- | ---: | ---: | ---: | --- |",

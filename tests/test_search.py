@@ -225,3 +225,66 @@ def test_what_mitlc_train_learner_search_refuses_is_one_line_exit_2(tmp_path) ->
     (out / "search.npz").write_bytes(b"PK\x03\x04 not a zip")
     r = _cli("simulate", "--policy", str(out))
     assert r.exit_code == 2 and "search.npz" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+
+
+def test_a_run_does_not_depend_on_the_runs_beside_it_and_joined_runs_are_one_search() -> None:
+    """Run r draws only from streams of (seed, r), cma's samples included: runs 0-1 and runs 2-4
+    searched apart and joined are the five runs searched at once, to the bit."""
+    whole = _runs(EASY, 5, seed=3)
+    whole.train(4)
+    head, tail = _runs(EASY, 2, seed=3), _runs(EASY, 3, seed=3)
+    tail = SearchRuns(tail.rs, 3, 3, tail.settings, tail.judge, first=2)
+    head.train(4)
+    tail.train(4)
+    both = head.joined(tail)
+    np.testing.assert_array_equal(both.weights, whole.weights)
+    np.testing.assert_array_equal(both.returns, whole.returns)
+    np.testing.assert_array_equal(both.evaluation_states(), whole.evaluation_states())
+    np.testing.assert_array_equal(tail.evaluation_states(), whole.evaluation_states()[2:])
+    with pytest.raises(ValueError, match="share"):
+        head.joined(head)  # not the runs that follow
+
+
+def test_mitlc_train_races_the_search_and_trains_it_as_learner_search_would(tmp_path) -> None:
+    """The default race: SACPN's five designs and the search; the search wins the cart-pole's balance
+    (SACPN learns nothing in 50 trials) and the folder is ``--learner search``'s with the same seed,
+    to the bit (the race's two search runs kept, four more searched), with the race recorded."""
+    import json
+
+    spec = tmp_path / "balance.mitl"
+    spec.write_text(BALANCE)
+    raced, alone = tmp_path / "raced", tmp_path / "alone"
+    r = _cli("train", "--spec", str(spec), "--runs", "6", "--trials", "100", "--seed", "2", "--out", str(raced))
+    assert r.exit_code == 0, r.output
+    assert "search (2 runs x 20 generations)" in r.output and "; search won" in r.output
+    m = json.loads((raced / "metrics.json").read_text())
+    assert m["learner"] == "search" and m["trials"] == 20 and m["runs"] == 6
+    race = m["race"]
+    assert (race["winner"], race["learner"], race["runs"], race["trials"], race["generations"]) == (
+        "search", "search", 2, 50, 20
+    )  # fmt: skip
+    names = [d["name"] for d in race["designs"]]
+    assert len(names) == 6 and names[-1] == "search" and race["designs"][-1]["success"] == 1.0
+    assert not (raced / "params.npz").exists()
+    alone_args = ("--learner", "search", "--runs", "6", "--trials", "20", "--seed", "2", "--out", str(alone))
+    assert _cli("train", "--spec", str(spec), *alone_args).exit_code == 0
+    assert (raced / "search.npz").read_bytes() == (alone / "search.npz").read_bytes()
+    assert m["satisfied"] == json.loads((alone / "metrics.json").read_text())["satisfied"]
+
+
+def test_the_search_races_only_when_nothing_of_sacpns_was_given(tmp_path) -> None:
+    import json
+
+    spec = tmp_path / "easy.mitl"
+    spec.write_text(EASY)
+    for extra, searched in (
+        ((), True),
+        (("--learner", "sacpn"), False),
+        (("--set", "rbf_width=0.5"), False),
+        (("--sigma", "0.3"), False),
+    ):
+        out = tmp_path / ("o" + "".join(extra).replace("-", "").replace("=", "").replace(".", ""))
+        r = _cli("train", "--spec", str(spec), "--runs", "2", "--trials", "4", "--out", str(out), "-q", *extra)
+        assert r.exit_code == 0, r.output
+        names = [d["name"] for d in json.loads((out / "metrics.json").read_text())["race"]["designs"]]
+        assert ("search" in names) == searched, (extra, names)

@@ -17,7 +17,10 @@ def run(*args):
 
 def test_train_writes_everything(short_spec, tmp_path):
     out = tmp_path / "out"
-    res = run("train", "--plant", "pendulum", "--spec", short_spec, "--runs", 3, "--trials", 4, "--out", out, "-q")
+    res = run(
+        "train", "--plant", "pendulum", "--spec", short_spec, "--runs", 3, "--trials", 4, "--out", out, "-q",
+        "--learner", "sacpn",
+    )  # fmt: skip
     assert res.exit_code == 0, res.output
     assert "success rate" in res.output
     for name in ("metrics.json", "params.npz", "learning_curve.png", "rollout.png"):
@@ -126,7 +129,9 @@ def test_diverging_training_is_a_clean_error(short_spec, tmp_path, monkeypatch):
 
     monkeypatch.setattr(sacpn.Sacpn, "_trial", nan_trial)
     res = CliRunner().invoke(
-        main, ["train", "--spec", str(short_spec), "--runs", "2", "--trials", "3", "--out", str(tmp_path / "o"), "-q"]
+        main,
+        ["train", "--spec", str(short_spec), "--runs", "2", "--trials", "3", "--out", str(tmp_path / "o"), "-q"]
+        + ["--learner", "sacpn"],
     )
     assert res.exit_code == 0, res.output  # run 1 is healthy: it is kept, run 0 is marked
     assert "1 of 2 runs diverged (NaN or inf) and kept their last finite parameters: run 0 (trial 1)" in res.output

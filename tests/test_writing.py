@@ -304,11 +304,27 @@ def test_only_names_mitlc_writes_are_ever_removed(tmp_path, spec):
     ]
     assert not any(owned(n) for n in ("notes.txt", "plants/../x.py", "/etc/passwd", "plants/a/b.py", MANIFEST))
     d = tmp_path / "d"
-    assert run("train", "--spec", spec, "--runs", 1, "--trials", 1, "-q", "--out", d).exit_code == 0
-    assert set(read_manifest(d)["files"]) == OWNED  # every file a training writes is in OWNED, and no other
+    assert (
+        run("train", "--spec", spec, "--runs", 1, "--trials", 1, "-q", "--out", d, "--learner", "sacpn").exit_code == 0
+    )
+    # every file a SACPN training writes is in OWNED, and no other but the policy search's
+    assert set(read_manifest(d)["files"]) | {"search.npz"} == OWNED
+    assert owned("sac_000.zip") and owned("sac_1234.zip") and not owned("sac_1.zip") and not owned("sac_000.zip.bak")
     (d / "notes.txt").write_text("mine")
-    assert run("train", "--spec", spec, "--runs", 1, "--trials", 1, "-q", "--no-plots", "--out", d).exit_code == 0
+    sacpn = ("--learner", "sacpn")
+    assert (
+        run("train", "--spec", spec, "--runs", 1, "--trials", 1, "-q", "--no-plots", "--out", d, *sacpn).exit_code == 0
+    )
     assert listing(d) == [MANIFEST, "metrics.json", "notes.txt", "params.npz"]
+    # a policy search into the same folder replaces the set (its search.npz is mitlc's, the checkpoint goes)
+    search = ("--learner", "search")
+    assert (
+        run("train", "--spec", spec, "--runs", 1, "--trials", 1, "-q", "--no-plots", "--out", d, *search).exit_code == 0
+    )
+    assert listing(d) == [MANIFEST, "metrics.json", "notes.txt", "search.npz"]
+    assert (
+        run("train", "--spec", spec, "--runs", 1, "--trials", 1, "-q", "--no-plots", "--out", d, *search).exit_code == 0
+    )
 
 
 # ---------------------------------------------------------------- item 3: a sweep's folder

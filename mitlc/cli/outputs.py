@@ -59,19 +59,23 @@ FORMAT = "mitlc-run"
 VERSION = 1
 """The ``format`` and ``version`` keys that make a ``manifest.json`` mitlc's own."""
 
-OWNED = frozenset({"params.npz", "metrics.json", "rollout.png", "learning_curve.png"})
-"""The files a training writes into its folder, besides ``manifest.json`` and a plant file's copy
-``plants/NAME.py``: the only names mitlc ever removes there (tests/test_writing.py keeps this list
-in step with what ``mitlc train`` writes)."""
+OWNED = frozenset({"params.npz", "search.npz", "metrics.json", "rollout.png", "learning_curve.png"})
+"""The files a training writes into its folder, besides ``manifest.json``, a plant file's copy
+``plants/NAME.py`` and a SAC training's models ``sac_NNN.zip``: the only names mitlc ever removes
+there (tests/test_writing.py keeps this list in step with what ``mitlc train`` writes: SACPN's
+checkpoint ``params.npz``, the policy search's ``search.npz``)."""
 
 _PLANT_COPY = re.compile(r"plants/[A-Za-z0-9_][A-Za-z0-9_.-]*\.py")
+_SAC_MODEL = re.compile(r"sac_[0-9]{3,}\.zip")
 _MANIFEST_LIMIT = 1 << 24
 """A manifest is a few hundred bytes; a ``manifest.json`` larger than 16 MiB is not mitlc's."""
 
 
 def owned(name: object) -> bool:
     """Whether ``name`` (relative to a training folder) is a file mitlc writes there."""
-    return isinstance(name, str) and (name in OWNED or _PLANT_COPY.fullmatch(name) is not None)
+    return isinstance(name, str) and (
+        name in OWNED or _PLANT_COPY.fullmatch(name) is not None or _SAC_MODEL.fullmatch(name) is not None
+    )
 
 
 def read_manifest(out: Path) -> dict | None:

@@ -224,17 +224,17 @@ def _outputs(
     "--trials",
     type=click.IntRange(0, 10**7),
     default=None,
-    help=f"Trials per run (in total, counting trials done before --resume); default {TRIALS}, for --learner sac "
-    "about 20,000 samples per run, for --learner search 100 generations.",
+    help=f"Trials per run (in total, counting trials done before --resume); default {TRIALS} (the policy search "
+    "runs a fifth of them as generations: 100), for --learner sac about 20,000 samples per run.",
 )
 @click.option(
     "--learner",
     type=click.Choice(["sacpn", "sac", "search"]),
-    default="sacpn",
-    show_default=True,
-    help="sac: Stable-Baselines3's SAC on the same reward, one network per run (needs the sb3 extra); "
-    "search: CMA-ES over a time-varying linear feedback judged by the monitor (needs the search extra); "
-    "both for tasks SACPN's grid cannot learn (mitlc docs training); --set takes their settings then.",
+    default=None,
+    help="Default: SACPN's exploration designs and the policy search race and the winner trains "
+    "(mitlc docs training). sacpn: SACPN only; search: the policy search only (CMA-ES over a time-varying "
+    "linear feedback judged by the monitor); sac: Stable-Baselines3's SAC on the same reward, one network per "
+    "run (needs the sb3 extra); --set takes their settings then.",
 )
 @click.option(
     "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True, help="Seed of all random numbers."
@@ -362,11 +362,11 @@ def train(
     from mitlc.learn.sacpn import SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
-    from mitlc.sweep.race import greedy_verdicts, race
+    from mitlc.sweep.race import greedy_verdicts, race, search_generations
     from mitlc.sweep.task import sacpn_learner
 
     meta = None
-    if learner != "sacpn":
+    if learner in ("sac", "search"):
         stray = {"--resume": resume_dir, "--sigma": sigma, "--mask": mask, "--saturation": saturation}
         stray.update({"--penalty-ramp": penalty_ramp, "--no-race": no_race or None})
         stray["--preset"] = None if preset == "default" else preset
@@ -404,7 +404,7 @@ def train(
     for w in spec.warnings:
         click.echo(w, err=True)
     if spec.formula is None and spec.requirements:  # classical criteria: HyRL (docs/hyrl.md)
-        if learner != "sacpn":
+        if learner in ("sac", "search"):
             raise InputError(
                 f"a spec of 'require' criteria trains HyRL; --learner {learner} takes a formula", file="--learner"
             )
@@ -430,7 +430,7 @@ def train(
             report=not (no_report or no_plots),
         )
         return
-    if learner != "sacpn":
+    if learner in ("sac", "search"):
         options = CompileOptions.from_spec(
             spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward
         )
@@ -453,6 +453,15 @@ def train(
 
     def build(st, r: int, s: int):
         return sacpn_learner(rs, st, r, s)
+
+    from mitlc.learn.search import SearchRuns, SearchSettings
+
+    given_sacpn = bool(assignments) or any(v is not None for v in (sigma, mask, saturation, penalty_ramp))
+    searcher = None
+    if learner is None and not given_sacpn and spec.plant is not None and not spec.plant.stepped:
+
+        def searcher(r: int):  # the race's search: runs 0 .. r - 1 of the training's own seed
+            return SearchRuns(rs, r, seed, SearchSettings(), _monitor_judge(spec))
 
     wall_before = 0.0
     raced: dict | None = None
@@ -491,12 +500,27 @@ def train(
                             f"{stem}: race {i + 1}/{n} ({100 * (i + 1) // n}%), {text}", err=True
                         ),
                         given=chosen,
+                        search=searcher,
+                        generations=search_generations(trials),
                     )
                 if result is not None:
                     built, (settings, raced) = settings, (result.settings, result.record())
                     wall_before = time.perf_counter() - t0
                     if not quiet:
                         click.echo(result.line(), err=True)
+                    if result.learner == "search":  # the search won: its race runs kept, the others searched now
+                        kept = result.searched
+                        rest = (
+                            SearchRuns(rs, runs - kept.runs, seed, kept.settings, kept.judge, first=kept.runs)
+                            if runs > kept.runs
+                            else None
+                        )
+                        out = _search_into(
+                            outset, rest, spec, result.generations, quiet, no_plots, kept, raced, wall_before
+                        )
+                        outset.close()
+                        after_training(out, not (no_report or no_plots))
+                        return
                     if settings != built:  # the winner is not the design the learner was built with
                         agent = build(settings, runs, seed)
         except KeyboardInterrupt:
@@ -580,11 +604,21 @@ def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) 
     return out
 
 
+def _monitor_judge(spec):
+    """The policy search's judge: the monitor's verdict on rollouts of ``spec``'s monitor formula."""
+
+    def judge(states: np.ndarray, dt: float):
+        from mitlc.monitor.offline import monitor
+
+        return monitor(spec, states, dt, spec.monitor_formula)
+
+    return judge
+
+
 def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> Path:
     """``mitlc train --learner search``: :class:`mitlc.learn.search.SearchRuns` into an output set
     (search.npz, metrics.json as SACPN's, the plots); Ctrl-C saves nothing (no checkpoint to resume)."""
-    from mitlc.cli.progress import Progress
-    from mitlc.learn.search import FILE, SearchRuns, SearchSettings, default_generations
+    from mitlc.learn.search import SearchRuns, SearchSettings, default_generations
     from mitlc.learn.settings import parse_assignments
 
     for w in rs.warnings:
@@ -593,41 +627,54 @@ def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plot
         import cma  # noqa: F401  (the search's optimiser: say so before anything is written)
     except ImportError:
         raise InputError(
-            "--learner search runs CMA-ES from the cma package: pip install 'mitlc[search]'", file="--learner"
+            "the policy search runs CMA-ES from the cma package, a dependency of mitlc: pip install cma",
+            file="--learner",
         ) from None
     settings = SearchSettings(**parse_assignments(SearchSettings, assignments))
-
-    def judge(states: np.ndarray, dt: float):
-        from mitlc.monitor.offline import monitor
-
-        return monitor(spec, states, dt, spec.monitor_formula)
-
-    agent = SearchRuns(rs, runs, seed, settings, judge)
+    agent = SearchRuns(rs, runs, seed, settings, _monitor_judge(spec))
     trials = default_generations(agent.n_steps) if trials is None else trials
-    stem = Path(spec.path or "spec").stem
     outset = output_set(out, spec).open()
     try:
-        bar = Progress(trials, 0, desc=stem, quiet=quiet)
-        start = time.perf_counter()
-
-        def progress(done: int, total: int) -> None:
-            interrupt.check()
-            bar.update(f"generation {done}/{total}")
-
-        try:
-            interrupt.check()
-            agent.train(trials, progress)
-        except KeyboardInterrupt:
-            bar.close()
-            click.echo("interrupted: a search keeps no checkpoint, nothing saved", err=True)
-            sys.exit(130)
-        bar.close()
-        wall = time.perf_counter() - start
-        files: dict[str, bytes | str] = {FILE: agent.file_bytes()}
-        metrics = _runs_outputs(agent, spec, wall, "search", files, plots=not no_plots)
-        out = outset.write(files, trial=agent.trial, seed=seed, runs=runs, wall_s=round(wall, 3))
+        return _search_into(outset, agent, spec, trials, quiet, no_plots)
     finally:
         outset.close()
+
+
+def _search_into(outset, agent, spec, generations, quiet, no_plots, kept=None, raced=None, wall_before=0.0) -> Path:
+    """Train the search ``agent`` for ``generations`` into the open ``outset``; the folder written.
+
+    After a race the search won (``raced``: its record), ``kept`` are the race's trained runs
+    ``0 .. r - 1`` and ``agent`` the runs after them (None: none left), joined once searched: the
+    numbers of ``mitlc train --learner search`` with the same seed, to the bit. ``wall_before``: the
+    race's time."""
+    from mitlc.cli.progress import Progress
+    from mitlc.learn.search import FILE
+
+    runs = (0 if agent is None else agent.runs) + (0 if kept is None else kept.runs)
+    stem = Path(spec.path or "spec").stem
+    todo = generations if agent is not None else 0
+    bar = Progress(todo, 0, desc=stem, quiet=quiet)
+    start = time.perf_counter()
+
+    def progress(done: int, total: int) -> None:
+        interrupt.check()
+        bar.update(f"generation {done}/{total}")
+
+    try:
+        interrupt.check()
+        if agent is not None:
+            agent.train(generations, progress)
+    except KeyboardInterrupt:
+        bar.close()
+        click.echo("interrupted: a search keeps no checkpoint, nothing saved", err=True)
+        sys.exit(130)
+    bar.close()
+    if kept is not None:
+        agent = kept if agent is None else kept.joined(agent)
+    wall = wall_before + time.perf_counter() - start
+    files: dict[str, bytes | str] = {FILE: agent.file_bytes()}
+    metrics = _runs_outputs(agent, spec, wall, "search", files, plots=not no_plots, raced=raced)
+    out = outset.write(files, trial=agent.trial, seed=agent.seed, runs=runs, wall_s=round(wall, 3))
     rate = metrics.get("success_rate")
     click.echo(
         f"{runs} searches x {agent.trial} generations in {wall:.1f} s; "
@@ -638,7 +685,9 @@ def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plot
     return out
 
 
-def _runs_outputs(agent, spec, wall_s: float, learner: str, files: dict, plots: bool = True) -> dict:
+def _runs_outputs(
+    agent, spec, wall_s: float, learner: str, files: dict, plots: bool = True, raced: dict | None = None
+) -> dict:
     """Add a SAC or search training's metrics.json (SACPN's keys where they mean the same) and plots
     to its output set ``files`` (its models or search file already in it); the metrics."""
     from mitlc.learn.plots import learning_curve, png_bytes
@@ -666,6 +715,8 @@ def _runs_outputs(agent, spec, wall_s: float, learner: str, files: dict, plots: 
     }
     if learner == "search":  # its returns are each generation's best fitness (mitlc.learn.search.scores)
         metrics["returns_are"] = "the best candidate's fitness per generation"
+    if raced is not None:
+        metrics["race"] = raced
     if agent.trial > 0:
         _judge_greedy(agent, spec, metrics, files, plots)
         if plots:

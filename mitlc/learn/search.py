@@ -189,7 +189,8 @@ class SearchRuns:
     ``judge(states, dt)`` returns the monitor's verdict on rollouts ``(B, N + 1, n)``: an object with
     ``satisfied``, ``robustness`` and ``violation_time`` ``(B,)`` (:func:`mitlc.monitor.monitor`'s
     result). ``returns`` ``(runs, generations)``: each generation's best fitness per run.
-    :meth:`rollout` rolls row ``b`` out with run ``b % runs``.
+    :meth:`rollout` rolls row ``b`` out with run ``b % runs``. The runs are numbered from ``first``:
+    run ``r`` draws only from streams of ``(seed, r)``, so its result does not depend on the runs beside it.
     """
 
     def __init__(
@@ -199,12 +200,15 @@ class SearchRuns:
         seed: int,
         settings: SearchSettings | None = None,
         judge: Callable[[np.ndarray, float], Any] | None = None,
+        first: int = 0,
     ) -> None:
         self.settings = settings or SearchSettings()
         self.settings.check()
         if runs < 1:
             raise InputError(f"runs must be at least 1, got {runs}", file="--runs")
-        self.rs, self.spec, self.runs, self.seed = rs, rs.spec, int(runs), int(seed)
+        if first < 0:
+            raise InputError(f"first must be at least 0, got {first}", file="--runs")
+        self.rs, self.spec, self.runs, self.seed, self.first = rs, rs.spec, int(runs), int(seed), int(first)
         self.episode = ep = _Episode(rs)
         self.plant, self.dt, self.n_steps, self.init_ranges = ep.plant, ep.dt, ep.n_steps, ep.init_ranges
         self.params = ep.params
@@ -245,23 +249,34 @@ class SearchRuns:
             import cma
         except ImportError:
             raise InputError(
-                "the policy search runs CMA-ES from the cma package: pip install 'mitlc[search]'", file="--learner"
+                "the policy search runs CMA-ES from the cma package, a dependency of mitlc: pip install cma",
+                file="--learner",
             ) from None
         if self.judge is None:
             raise TrainingError("the policy search needs a judge (the monitor) to train")
         st = self.settings
         P, S, R = st.popsize, st.starts, self.runs
-        rngs = [np.random.default_rng([self.seed, r, 0]) for r in range(R)]
-        saved = np.random.get_state()  # cma seeds numpy's global generator: put it back afterwards
+        ids = range(self.first, self.first + R)  # run r's streams are (seed, r, ...) whatever the runs beside it
+        rngs = [np.random.default_rng([self.seed, r, 0]) for r in ids]
+        saved = np.random.get_state()  # cma samples from numpy's global generator: put it back afterwards
         try:
-            searches = []
-            for r in range(R):
+            searches, streams = [], []
+            for r in ids:
                 seed = int(np.random.SeedSequence([self.seed, r, 2]).generate_state(1)[0]) + 1
                 opts = {"seed": seed, "popsize": P, "verbose": -9}
-                searches.append(cma.CMAEvolutionStrategy(self.weights[r].ravel(), st.sigma0, opts))
+                searches.append(cma.CMAEvolutionStrategy(self.weights[r - self.first].ravel(), st.sigma0, opts))
+                streams.append(np.random.get_state())  # the global generator as this run's search left it
+
+            def ask(r: int) -> np.ndarray:  # each run draws from its own copy of the global generator
+                np.random.set_state(streams[r])
+                try:
+                    return np.asarray(searches[r].ask())
+                finally:
+                    streams[r] = np.random.get_state()
+
             best = np.zeros((R, trials))
             for g in range(trials):
-                cand = np.array([s.ask() for s in searches])  # (R, P, dim)
+                cand = np.array([ask(r) for r in range(R)])  # (R, P, dim)
                 x0 = np.stack([self._draw(rngs[r], S) for r in range(R)])  # (R, S, n)
                 W = np.repeat(cand.reshape(R * P, self.n_features, self.n_inputs), S, axis=0)
                 starts = np.repeat(x0, P, axis=0).reshape(R * P * S, -1)
@@ -272,7 +287,9 @@ class SearchRuns:
                 if not np.all(np.isfinite(fit)):
                     raise TrainingError(f"the policy search's fitness is not finite in generation {g + 1}")
                 for r in range(R):
+                    np.random.set_state(streams[r])
                     searches[r].tell(list(cand[r]), list(-fit[r]))  # cma minimises
+                    streams[r] = np.random.get_state()
                 best[:, g] = fit.max(axis=1)
                 self.trial += 1
                 if progress is not None:
@@ -285,7 +302,8 @@ class SearchRuns:
     # ------------------------------------------------------------------ judging
     def evaluation_states(self) -> np.ndarray:
         """One initial state per run, drawn from the ``init`` box by run ``r``'s evaluation stream ``(seed, r, 1)``."""
-        return np.stack([self._draw(np.random.default_rng([self.seed, r, 1]), 1)[0] for r in range(self.runs)])
+        ids = range(self.first, self.first + self.runs)
+        return np.stack([self._draw(np.random.default_rng([self.seed, r, 1]), 1)[0] for r in ids])
 
     @property
     def runtime(self) -> Any:
@@ -314,6 +332,23 @@ class SearchRuns:
             codes[:, k + 1] = code = code1
         return Rollout(states, actions, codes, rewards, self.dt)
 
+    def joined(self, rest: SearchRuns) -> SearchRuns:
+        """These runs followed by ``rest`` (runs ``first + runs``, ... of the same seed, settings and
+        generations) as one search: what a search of all of them at once gives, to the bit (each run
+        draws from streams of its own; ``mitlc train``'s race keeps its search runs this way)."""
+        if (rest.seed, rest.settings, rest.trial, rest.first) != (
+            self.seed,
+            self.settings,
+            self.trial,
+            self.first + self.runs,
+        ):
+            raise ValueError("joined: the runs that follow must share the seed, settings and generations")
+        both = SearchRuns(self.rs, self.runs + rest.runs, self.seed, self.settings, self.judge, self.first)
+        both.weights = np.concatenate([self.weights, rest.weights])
+        both.returns = np.concatenate([self.returns, rest.returns])
+        both.trial = self.trial
+        return both
+
     def policy(self) -> SearchPolicy:
         """The trained runs as a :class:`mitlc.learn.policy.Policy`."""
         return SearchPolicy(self)
@@ -330,6 +365,7 @@ class SearchRuns:
             "kind": "search",
             "runs": self.runs,
             "seed": self.seed,
+            "first": self.first,
             "trial": self.trial,
             "settings": self.settings.to_dict(),
             "spec_source": self.spec.source or "",
@@ -379,6 +415,7 @@ def load_search(folder: Any) -> SearchRuns:
             raise _damaged(where, "its 'meta' record is not a search's")
         try:
             runs, seed, trial = (int(meta[k]) for k in ("runs", "seed", "trial"))
+            first = int(meta.get("first", 0))
             settings = SearchSettings.from_dict(dict(meta["settings"]))
             settings.check()
             source, spec_path = str(meta["spec_source"]), str(meta["spec_path"])
@@ -394,7 +431,10 @@ def load_search(folder: Any) -> SearchRuns:
     options = CompileOptions.from_spec(
         spec, **{k: meta.get(k) for k in ("conjunction", "violations", "clock", "reward")}
     )
-    search = SearchRuns(compile_spec(spec, options), runs, seed, settings)
+    try:
+        search = SearchRuns(compile_spec(spec, options), runs, seed, settings, first=first)
+    except InputError as exc:
+        raise _damaged(where, str(exc)) from None
     if weights.shape != search.weights.shape or not np.isfinite(weights).all():
         raise _damaged(where, f"its gains have shape {weights.shape}, not {search.weights.shape}, or are not finite")
     search.weights, search.returns, search.trial = np.asarray(weights, float), np.asarray(returns, float), trial

@@ -22,7 +22,7 @@ trial: about two thirds again the training itself (five designs, 8 runs each, ha
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -40,6 +40,8 @@ __all__ = [
     "race",
     "race_seed",
     "raced",
+    "search_generations",
+    "SEARCH",
 ]
 
 DESIGNS: tuple[tuple[str, dict[str, Any]], ...] = (
@@ -61,7 +63,27 @@ race costs about two thirds of the training itself whatever the runs (8 for 30 r
 RACE_SHARE = 0.5
 """The race's trials as a share of the training's."""
 
+SEARCH = "search"
+"""The race's name for the policy search (:mod:`mitlc.learn.search`): a design of its own, judged as
+SACPN's are, raced when the plant can be put in a chosen state and no SACPN setting was given."""
+
+SEARCH_SHARE = 0.2
+"""The search's generations per SACPN trial: a training of the default 500 trials races and trains
+the search for 100 generations (the generations the search was chosen at: bench/suite/tuning/9-policy-search.json),
+one of 20 trials for 4."""
+
 ALIASES = {"sigma": "sigma_frac"}
+
+
+def search_generations(trials: int) -> int:
+    """The policy search's generations for a training of ``trials`` SACPN trials (:data:`SEARCH_SHARE`).
+
+    >>> search_generations(500), search_generations(20), search_generations(1)
+    (100, 4, 1)
+    """
+    return max(1, int(round(trials * SEARCH_SHARE)))
+
+
 """A given setting that fixes a raced one (an explicit ``sigma`` is the exploration)."""
 
 
@@ -100,17 +122,30 @@ class Entry:
 class Race:
     winner: str
     settings: Any
-    """The base settings with the winner's changes: what the training runs with."""
+    """The base settings with the winner's changes: what the training runs with (SACPN's; the base
+    settings unchanged when the search won)."""
     entries: tuple[Entry, ...]
     runs: int
     trials: int
+    generations: int = 0
+    """The search's generations in the race (0: the search did not race)."""
+    searched: Any = field(default=None, compare=False, repr=False)
+    """The search's runs as the race trained them (runs ``0 .. runs - 1`` of the training's own seed:
+    the training keeps them when the search wins), None when it did not race."""
+
+    @property
+    def learner(self) -> str:
+        """Which learner won: ``"search"`` or ``"sacpn"``."""
+        return SEARCH if self.winner == SEARCH else "sacpn"
 
     def record(self) -> dict[str, Any]:
         """The race as metrics.json keeps it."""
         return {
             "winner": self.winner,
+            "learner": self.learner,
             "runs": self.runs,
             "trials": self.trials,
+            **({"generations": self.generations} if self.generations else {}),
             "designs": [
                 {"name": e.name, "success": e.success, "mean_return": round(e.mean_return, 6)} for e in self.entries
             ],
@@ -118,9 +153,8 @@ class Race:
 
     def line(self) -> str:
         table = ", ".join(f"{e.name} {e.success:.2f}" for e in self.entries)
-        return (
-            f"race ({self.runs} runs x {self.trials} trials each, success by the monitor): {table}; {self.winner} won"
-        )
+        each = f"{self.trials} trials" + (f" or {self.generations} generations" if self.generations else "")
+        return f"race ({self.runs} runs x {each} each, success by the monitor): {table}; {self.winner} won"
 
 
 def race_seed(seed: int, i: int) -> int:
@@ -137,33 +171,48 @@ def race(
     seed: int,
     progress: Callable[[int, int, str], None] | None = None,
     given: set[str] | frozenset[str] = frozenset(),
+    search: Callable[[int], Any] | None = None,
+    generations: int = 0,
 ) -> Race | None:
-    """Race :data:`DESIGNS` (less the settings ``given``: :func:`designs`) on ``settings``, None when
-    one design is left: ``build(settings, runs, seed)`` makes a learner,
-    ``judge(learner)`` says which of its runs' final greedy policies satisfy the spec, and their
-    greedy rollouts' returns."""
+    """Race :data:`DESIGNS` (less the settings ``given``: :func:`designs`) on ``settings``, and the
+    policy search when ``search`` is given, None when one design is left: ``build(settings, runs, seed)``
+    makes a SACPN learner, ``search(runs)`` an untrained search of runs ``0 .. runs - 1`` on the
+    training's seed (trained for ``generations``), ``judge(learner)`` says which of its runs' final
+    greedy policies satisfy the spec, and their greedy rollouts' returns."""
     r = max(1, min(RACE_RUNS, -(-runs // 4)))
     t = max(1, int(round(trials * RACE_SHARE)))
     todo = designs(set(given))
-    if len(todo) < 2:
+    n = len(todo) + (search is not None)
+    if n < 2:
         return None
-    entries = []
+    entries, searched = [], None
     for i, (name, changes) in enumerate(todo):
         agent = build(replace(settings, **changes), r, race_seed(seed, i))  # a plant it cannot drive fails here
         if progress is not None:  # design i of n starts
-            progress(i, len(todo), f"{name} ({r} runs x {t} trials)")
-        try:
-            agent.train(t)
-        except TrainingError:  # every run of the design diverged: it loses (the training says so if it wins)
-            entries.append(Entry(name, 0.0, float("-inf")))
-            continue
-        ok, returns = judge(agent)
-        finite = np.asarray(returns, dtype=float)
-        finite = finite[np.isfinite(finite)]
-        mean = float(finite.mean()) if finite.size else float("-inf")
-        entries.append(Entry(name, float(np.mean(np.asarray(ok, dtype=bool))), mean))
+            progress(i, n, f"{name} ({r} runs x {t} trials)")
+        entries.append(_run(agent, name, t, judge))
+    if search is not None:
+        searched = search(r)
+        if progress is not None:
+            progress(len(todo), n, f"{SEARCH} ({r} runs x {generations} generations)")
+        entries.append(_run(searched, SEARCH, generations, judge))
     best = max(range(len(entries)), key=lambda i: (entries[i].success, entries[i].mean_return, -i))
-    return Race(todo[best][0], replace(settings, **todo[best][1]), tuple(entries), r, t)
+    if best == len(todo):  # the search won
+        return Race(SEARCH, settings, tuple(entries), r, t, generations, searched)
+    return Race(todo[best][0], replace(settings, **todo[best][1]), tuple(entries), r, t, generations if search else 0)
+
+
+def _run(agent: Any, name: str, trials: int, judge: Callable[[Any], tuple[np.ndarray, np.ndarray]]) -> Entry:
+    """Train one design's ``agent`` for ``trials`` and judge it."""
+    try:
+        agent.train(trials)
+    except TrainingError:  # every run of the design diverged: it loses (the training says so if it wins)
+        return Entry(name, 0.0, float("-inf"))
+    ok, returns = judge(agent)
+    finite = np.asarray(returns, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    mean = float(finite.mean()) if finite.size else float("-inf")
+    return Entry(name, float(np.mean(np.asarray(ok, dtype=bool))), mean)
 
 
 def greedy_verdicts(agent: Any) -> tuple[np.ndarray, np.ndarray]:
