@@ -118,8 +118,10 @@ def train_task(job: tuple) -> dict:
     def build(st: SacpnSettings, r: int, s: int):  # as mitlc train builds one
         return sacpn_learner(rs, st, r, s)
 
-    def searcher(r: int):  # as mitlc train races the policy search: runs 0 .. r - 1 of the training's seed
-        return SearchRuns(rs, r, seed, SearchSettings(), _monitor_judge(spec))
+    def searcher(
+        r: int, changes: dict
+    ):  # as mitlc train races the policy search: runs 0 .. r - 1 of the training's seed
+        return SearchRuns(rs, r, seed, SearchSettings(**changes), _monitor_judge(spec))
 
     t0 = time.perf_counter()
     given = {a.split("=", 1)[0] for a in sets}

@@ -142,7 +142,8 @@ def _train(spec: Path, out: Path, err: Path, *args: str, cache: str | None = Non
 
 def test_a_training_logged_to_a_file_writes_20_plain_lines_and_no_frames(short_spec, tmp_path):
     err = tmp_path / "log"
-    stdout = _train(short_spec, tmp_path / "o", err, "--trials", "40")
+    # SACPN's race (the policy search's designs race too by default: tests/test_search.py)
+    stdout = _train(short_spec, tmp_path / "o", err, "--trials", "40", "--learner", "sacpn")
     assert stdout.startswith("2 runs x 40 trials in ")
     data = err.read_bytes()
     assert b"\r" not in data
@@ -182,6 +183,8 @@ def test_quiet_training_writes_only_the_final_line(short_spec, tmp_path):
             "2",
             "--trials",
             "40",
+            "--learner",
+            "sacpn",
             "-q",
             "--no-plots",
             "--out",

@@ -460,8 +460,8 @@ def train(
     searcher = None
     if learner is None and not given_sacpn and spec.plant is not None and not spec.plant.stepped:
 
-        def searcher(r: int):  # the race's search: runs 0 .. r - 1 of the training's own seed
-            return SearchRuns(rs, r, seed, SearchSettings(), _monitor_judge(spec))
+        def searcher(r: int, changes: dict):  # the race's search: runs 0 .. r - 1 of the training's own seed
+            return SearchRuns(rs, r, seed, SearchSettings(**changes), _monitor_judge(spec))
 
     wall_before = 0.0
     raced: dict | None = None

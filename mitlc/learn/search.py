@@ -92,10 +92,14 @@ class SearchSettings:
     """The search's initial step size, in gains of the normalised features."""
     time_gains: bool = True
     """Whether the gains may change linearly over the horizon (the features ``tau z`` and ``tau``)."""
+    harmonics: int = 0
+    """Periodic terms in time: ``sin(2 pi k tau)``, ``cos(2 pi k tau)`` for ``k = 1 .. harmonics``."""
 
     def check(self) -> None:
         if self.popsize < 4:
             raise InputError(f"popsize must be at least 4, got {self.popsize}", file="--set")
+        if self.harmonics < 0:
+            raise InputError(f"harmonics must be at least 0, got {self.harmonics}", file="--set")
         if self.starts < 1:
             raise InputError(f"starts must be at least 1, got {self.starts}", file="--set")
         if not (np.isfinite(self.sigma0) and self.sigma0 > 0):
@@ -110,19 +114,24 @@ class SearchSettings:
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
-def features(z: np.ndarray, tau: float | np.ndarray, time_gains: bool) -> np.ndarray:
+def features(z: np.ndarray, tau: float | np.ndarray, time_gains: bool, harmonics: int = 0) -> np.ndarray:
     """``[z, 1, tau z, tau]`` (``[z, 1]`` without ``time_gains``) for the normalised states ``z`` ``(B, n)``
-    at the horizon's share ``tau`` (one number, or ``(B, 1)``: one per row).
+    at the horizon's share ``tau`` (one number, or ``(B, 1)``: one per row), then ``sin(2 pi k tau)``,
+    ``cos(2 pi k tau)`` for ``k = 1 .. harmonics``.
 
     >>> features(np.array([[0.5, -1.0]]), 0.25, True).tolist()
     [[0.5, -1.0, 1.0, 0.125, -0.25, 0.25]]
     >>> features(np.array([[0.5, -1.0]]), 0.25, False).tolist()
     [[0.5, -1.0, 1.0]]
+    >>> np.round(features(np.array([[0.5, -1.0]]), 0.25, False, 2), 12).tolist()
+    [[0.5, -1.0, 1.0, 1.0, 0.0, 0.0, -1.0]]
     """
     one = np.ones((z.shape[0], 1))
-    if not time_gains:
-        return np.concatenate([z, one], axis=1)
-    return np.concatenate([z, one, tau * z, tau * one], axis=1)
+    parts = [z, one] if not time_gains else [z, one, tau * z, tau * one]
+    for k in range(1, harmonics + 1):
+        angle = 2.0 * np.pi * k * (tau * one)
+        parts += [np.sin(angle), np.cos(angle)]
+    return np.concatenate(parts, axis=1)
 
 
 def scores(satisfied: np.ndarray, robustness: np.ndarray, violation_time: np.ndarray, horizon: float) -> np.ndarray:
@@ -215,7 +224,7 @@ class SearchRuns:
         self.n_inputs = ep.n_inputs
         self.judge = judge
         n = len(ep.init_ranges)
-        self.n_features = (2 * n + 2) if self.settings.time_gains else (n + 1)
+        self.n_features = ((2 * n + 2) if self.settings.time_gains else (n + 1)) + 2 * self.settings.harmonics
         self.weights: np.ndarray = np.zeros((self.runs, self.n_features, self.n_inputs))
         self.returns = np.zeros((self.runs, 0))
         self.trial = 0
@@ -225,7 +234,7 @@ class SearchRuns:
     # ------------------------------------------------------------------ rolling out
     def _roll(self, weights: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States ``(B, N + 1, n)`` and inputs of rows ``x0`` ``(B, n)`` under gains ``weights`` ``(B, f, m)``."""
-        ep = self.episode
+        ep, st = self.episode, self.settings
         x = np.array(x0, dtype=float)
         B, N = x.shape[0], self.n_steps
         states = np.empty((B, N + 1, x.shape[1]))
@@ -233,7 +242,7 @@ class SearchRuns:
         states[:, 0] = x
         with np.errstate(all="ignore"):
             for k in range(N):
-                phi = features(ep.normalise(x), k * self.dt / ep.horizon, self.settings.time_gains)
+                phi = features(ep.normalise(x), k * self.dt / ep.horizon, st.time_gains, st.harmonics)
                 u = ep.inputs(np.einsum("bf,bfm->bm", phi, weights))
                 self._advance(x, u)
                 states[:, k + 1], actions[:, k] = x, u
@@ -458,7 +467,7 @@ class SearchPolicy(Policy):
         x = np.atleast_2d(np.asarray(x, dtype=float))
         W = s.weights[np.arange(x.shape[0]) % s.runs]
         tau = np.asarray(state, dtype=float)[:, None] * s.dt / s.episode.horizon
-        phi = features(s.episode.normalise(x), tau, s.settings.time_gains)
+        phi = features(s.episode.normalise(x), tau, s.settings.time_gains, s.settings.harmonics)
         return s.episode.inputs(np.einsum("bf,bfm->bm", phi, W))
 
     def step(self, state: np.ndarray, x_next: np.ndarray) -> np.ndarray:
