@@ -289,3 +289,29 @@ def test_the_search_races_only_when_nothing_of_sacpns_was_given(tmp_path) -> Non
         assert r.exit_code == 0, r.output
         names = [d["name"] for d in json.loads((out / "metrics.json").read_text())["race"]["designs"]]
         assert ("search" in names) == searched, (extra, names)
+
+
+def test_harmonics_add_periodic_terms_in_time_that_a_folder_keeps(tmp_path) -> None:
+    from mitlc.learn.search import load_search
+
+    sr = _runs(EASY, 2, seed=4, harmonics=2)
+    assert sr.n_features == 2 * 2 + 2 + 4  # [q, qdot, 1, tau q, tau qdot, tau] and sin, cos of 2 pi tau, 4 pi tau
+    sr.weights[:] = 0.0
+    sr.weights[:, 6, 0] = 3.0  # the input follows sin(2 pi tau) alone: u = tanh(3 sin(2 pi tau)) in the box
+    ro = sr.rollout(sr.evaluation_states())
+    lo, hi = sr.episode.u_lo[0], sr.episode.u_hi[0]
+    tau = np.arange(sr.n_steps) * sr.dt / sr.episode.horizon
+    want = lo + (np.tanh(3.0 * np.sin(2 * np.pi * tau)) + 1) / 2 * (hi - lo)
+    np.testing.assert_allclose(ro.actions[0], want, rtol=0, atol=1e-12)
+    spec = tmp_path / "easy.mitl"
+    spec.write_text(EASY)
+    out = tmp_path / "h"
+    args = ("--learner", "search", "--set", "harmonics=2", "--runs", "2", "--trials", "3", "--out", str(out))
+    assert _cli("train", "--spec", str(spec), *args).exit_code == 0
+    loaded = load_search(out)
+    assert loaded.settings.harmonics == 2 and loaded.weights.shape == (2, 10, 1)
+    again = _runs(EASY, 2, seed=0, harmonics=2)
+    again.train(3)
+    np.testing.assert_array_equal(loaded.weights, again.weights)
+    r = _cli("train", "--spec", str(spec), "--learner", "search", "--set", "harmonics=-1", "--out", str(tmp_path / "x"))
+    assert r.exit_code == 2 and "harmonics" in r.output and len(r.output.strip().splitlines()) == 1, r.output

@@ -17,11 +17,16 @@ The policy of a run, for a plant with state ``x`` (``n`` variables) and ``m`` in
 a tenth of the state's half-range, so a variable pinned by ``init`` is still seen on its own
 scale): a gain of 1 moves an input through most of its box for a state anywhere in the init box.
 
+``harmonics = H`` adds ``sin(2 pi k tau)`` and ``cos(2 pi k tau)``, ``k = 1 .. H``, to ``phi``: a
+periodic schedule in time, which a patrol or an oscillation needs and a linear one cannot give.
+
 Each run is an independent CMA-ES (Hansen's ``cma`` package: step-size and covariance adaptation
-that a hand-written evolution strategy would only approximate) over the ``(2n + 2) m`` entries of
+that a hand-written evolution strategy would only approximate) over the ``(2n + 2 + 2H) m`` entries of
 ``W``, from ``W = 0`` (every input at the centre of its box). A generation rolls each of a run's
 ``popsize`` candidates out from the same ``starts`` initial states, drawn afresh from the ``init``
-box by the run's own stream, and judges every rollout with ``judge`` (the monitor, supplied by the
+box by the run's own stream (cma samples from numpy's global generator: each run keeps its own
+copy of it, so run ``r`` draws only from streams of ``(seed, r)`` and its gains do not depend on the
+runs beside it; the caller's generator is left as it was), and judges every rollout with ``judge`` (the monitor, supplied by the
 caller: this stage does not import it). A rollout's score orders, in turn, satisfaction, how late a
 violation came and how near it was to satisfaction:
 

@@ -1,4 +1,4 @@
-"""A short race between exploration designs before a training: ``mitlc train``'s default.
+"""A short race between designs before a training: ``mitlc train``'s default.
 
 No one exploration serves every spec (docs/suite.md): a small input noise (``sigma_frac``
 0.3 of the input's half-range, Table 4-4's) learns the pendulum's swing-ups and fails to find
@@ -6,17 +6,20 @@ a far goal on a heavy cart; a large one (1.0) finds the cart's bay and shakes th
 past its obstacle; only the smallest (0.1) carries the mass-damper across under a speed
 limit. Narrow Gaussians (``rbf_width`` 0.5 of the centre spacing) learn the
 pendulum's obstacle-avoiding swing-up that width 1 misses, and width 1 holds it up with a
-speed limit better. So ``mitlc train`` first trains each design of :data:`DESIGNS` on
-:data:`RACE_RUNS` runs for :data:`RACE_SHARE` of the trials,
-judges each design's final greedy policies with the monitor (the fraction that satisfy the
-spec from their evaluation starts, ties broken by those rollouts' mean return), and trains
-the full runs with the winner's settings: the training that follows is exactly
-``mitlc train --set sigma_frac=S --set rbf_width=W`` of the winner (same seed, same numbers), and metrics.json records
-the race.
+speed limit better. And no SACPN design learns the cart-pole's tasks, the cart's dock or the
+unicycle's corridor, which the policy search (:mod:`mitlc.learn.search`) learns, while the
+search misses the swing-ups. So ``mitlc train`` first trains each SACPN design of
+:data:`DESIGNS` on :data:`RACE_RUNS` runs for :data:`RACE_SHARE` of the trials, and each search
+design of :data:`SEARCH_DESIGNS` on the same runs for :func:`search_generations`, judges each
+design's final greedy policies with the monitor (the fraction that satisfy the spec from their
+evaluation starts, ties broken by those rollouts' mean return), and trains the full runs with
+the winner: after a SACPN design, exactly ``mitlc train --learner sacpn --set sigma_frac=S --set
+rbf_width=W`` of the winner (same seed, same numbers); after a search, exactly ``mitlc train
+--learner search`` (its race runs are runs ``0 .. r - 1`` of the training's seed, kept). metrics.json
+records the race.
 
-Settings the user gives are not raced (:func:`designs`); ``--no-race`` trains the defaults
-straight away. The race costs ``len(DESIGNS) * RACE_RUNS * RACE_SHARE`` run-trials per
-trial: about two thirds again the training itself (five designs, 8 runs each, half the trials).
+Settings the user gives are not raced (:func:`designs`), and the search races only when no SACPN
+setting is given; ``--no-race`` trains SACPN's defaults straight away.
 """
 
 from __future__ import annotations
