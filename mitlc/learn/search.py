@@ -27,8 +27,8 @@ that a hand-written evolution strategy would only approximate) over the ``(2n + 
 box by the run's own stream (cma samples from numpy's global generator: each run keeps its own
 copy of it, so run ``r`` draws only from streams of ``(seed, r)`` and its gains do not depend on the
 runs beside it; the caller's generator is left as it was), and judges every rollout with ``judge``
-(the monitor, supplied by the caller: this stage does not import it). A rollout's score orders, in turn, satisfaction, how late a
-violation came and how near it was to satisfaction:
+(the monitor, supplied by the caller: this stage does not import it). A rollout's score orders,
+in turn, satisfaction, how late a violation came and how near it was to satisfaction:
 
 * satisfied: ``2 + tanh(robustness)`` (in ``[2, 3)``: a larger margin is better);
 * violated:  ``t_v / horizon + tanh(robustness)`` (in ``[-1, 1)``: a violation that comes later,
