@@ -49,6 +49,8 @@ CASES["train-p1"] = [
     "train",
     "--spec",
     "specs/pendulum/p1_swing_up.mitl",
+    "--learner",  # SACPN's numbers: the race of its designs, not the policy search's
+    "sacpn",
     "--runs",
     "3",
     "--trials",
@@ -62,6 +64,8 @@ CASES["train-p2-unit-permanent"] = [
     "train",
     "--spec",
     "specs/pendulum/unit_weights/p2_avoid.mitl",
+    "--learner",  # SACPN's numbers: the race of its designs, not the policy search's
+    "sacpn",
     "--violations",
     "permanent",
     "--runs",
