@@ -11,6 +11,7 @@ or an equivalent mutant (one that cannot change any result: say why in
     python tests/mutation.py                            # every module, 45 mutants each, 2 jobs
     python tests/mutation.py --module compile --sample 100 --seed 3 --jobs 2
     python tests/mutation.py --module parse --list      # the mutation points, without running
+    python tests/mutation.py --module timed --sample 60 --seed 35 --record   # and docs/reliability.md's table
 
 Prints a line per mutant and a table of kill rates (killed / non-equivalent). Sampling
 is seeded: the same ``--seed`` draws the same mutants while the module is unchanged.
@@ -20,7 +21,10 @@ from __future__ import annotations
 
 import argparse
 import ast
+import datetime
+import json
 import os
+import platform
 import random
 import shutil
 import subprocess
@@ -32,6 +36,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+RECORD = ROOT / "docs" / "mutation.json"
+"""The last recorded run of each module (``--record``), from which docs/reliability.md's table is written."""
+PAGE = ROOT / "docs" / "reliability.md"
+TABLE_BEGIN = "<!-- the mutation table: written by python tests/mutation.py --record; edit the script -->"
+TABLE_END = "<!-- end of the mutation table -->"
 
 TARGETS: dict[str, tuple[str, list[str]]] = {
     "compile": (
@@ -64,53 +73,103 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
     "transform": ("mitlc/spec/transform.py", ["test_parse.py", "test_inline_predicates.py"]),
     "checks": ("mitlc/spec/checks.py", ["test_parse.py", "test_deep_and_messages.py"]),
     "passes": ("mitlc/spec/passes.py", ["test_passes.py", "test_compile.py", "test_parse.py"]),
+    # issue 35: the obligation trees of nested intervals, SACPN's fused trial kernel, the online
+    # monitor and the graded rewards (the fastest tests first: -x stops at the first failure)
+    "timed": (
+        "mitlc/petri/timed.py",
+        [
+            "test_timed_parts.py",
+            "test_net_vs_monitor.py",
+            "test_obligation_kernel.py",
+            "test_runtime.py",
+            "test_timed_contract.py",
+        ],
+    ),
+    "fused": ("mitlc/learn/sacpn/kernel.py", ["test_kernel.py"]),
+    "online": ("mitlc/monitor/online.py", ["test_online.py", "test_scalar_monitor.py", "test_gym.py"]),
+    "grades": ("mitlc/spec/grades.py", ["test_grades.py", "test_reward.py", "test_violations.py"]),
 }
 """Module -> (its file, its own tests)."""
 
 _BLOCKS = "the blocked until scan is correct for any block size >= 1: B only trades time for memory"
 _FAST = "switches between a fast path and the reference path, which compute the same values (tested to agree)"
+_REGION = "a region sub-net taken for another is stepped by the scanning rule: same markings"
+_UNREAD_COUNTS = "compact tables never have counting places: their increments are never read"
+_RESHAPE = "numpy reads any negative size in reshape as the one to infer"
+_EARLY_EXIT = "an early exit of the reachability search; the final size check refuses the same nets"
+_FALLBACK = "the fallback position of a node built without one; the parser gives every node its own"
 EQUIVALENT: dict[str, str] = {
-    "kernels:97:const:64->65": "_SMALL only picks the plain loop or the blocked scan below it; both give the same",
-    "kernels:121:bin:Add->Sub": _BLOCKS,
-    "kernels:121:bin:Sub->Add": _BLOCKS,
-    "kernels:121:const:1->2": _BLOCKS,
-    "kernels:151:bool:Or->And": "an early return for an empty or out-of-trace window: the general path gives bottom",
-    "kernels:87:bin:Sub->Add": "one more block of padding (filled with the identity) changes no window's value",
-    "monitor:403:const:1->2": "_first reads one sample past b only where b is the trace's end or a hit lies in [a, b]",
-    "kernels:154:bin:Sub->Add": "L + 1 for L - 1: a window covering the trace meets a U b with F b, which it implies"
-    " (the line's other Sub, hi + lo, is killed by test_until_windows_and_empty_intervals_on_long_traces)",
-    "kernels:157:cmp0:Gt->GtE": "with lo = 0 the left side's window [0, -1] is empty: meeting with top changes nothing",
-    "parse:488:if:negated": "lark raises an inline transformer's errors unwrapped: its VisitError branch is never run",
-    "parse:537:const:1->2": "the fallback position of a node built without one; the parser gives every node its own",
-    "parse:548:bool:Or->And": "both positions are set by the parser whenever either is",
-    "parse:680:const:1->2": "the fallback position of a variable built without one; the parser gives each its own",
-    "parse:635:if:negated": "looking up installed plants' entry points also when the name is known changes nothing",
-    "reward:150:const:1->2": "no node has the precedence between a negation's and the next: +1 and +2 wrap the same",
-    "reward:33:const:9->10": "the precedence of atoms only needs to be the highest: 9 or 10 prints the same",
-    "runtime:384:if:negated": "advance_code on a net without timed parts: the timed update of no tree is the identity",
-    "runtime:490:if:negated": _FAST,
-    "runtime:474:if:negated": _FAST,
-    "runtime:649:bin:FloorDiv->Div": "n * n <= MAX_TABLE // 16 and <= MAX_TABLE / 16 agree on integers",
-    "runtime:355:bool:And->Or": "an assert that holds either way (both are set together)",
-    "runtime:570:const:1.0->2.0": "any time before the first clock end represents that stretch",
-    "runtime:595:const:1->2": "the seed of the marking hash's weights: any seed hashes the same set apart",
-    "runtime:185:const:0->1": "the clock ends are read only by compact tables, which set them",
-    "runtime:661:const:0->1": "compact tables never have counting places: their increments are never read",
-    "runtime:167:const:1->2": "the atom bits of a net without propositions are never read",
-    "runtime:270:bool:And->Or": "an assert that holds either way (compact tables always carry their index)",
-    "runtime:543:const:7->8": "any offset of the counting places tells a reward that reads their tokens apart",
-    "runtime:537:const:1->2": "a second copy of the places' columns is never read: the expressions index the first",
-    "runtime:247:const:0->1": "a 0-d array of the segment indexes the tables as its int does",
-    "runtime:593:const:1->2": "numpy reads any negative size in reshape as the one to infer",
-    "runtime:654:cmp0:Gt->GtE": _FAST,
-    "runtime:654:bin:Mult->Div": _FAST,
-    "runtime:774:bin:Mult->Div": "an early exit of the reachability search; the final size check refuses the same nets",
-    "runtime:161:cmp0:IsNot->Is": "a region sub-net taken for another is stepped by the scanning rule: same markings",
-    "runtime:265:bool:And->Or": "a transition into a region place has its region as guard: writing it twice is same",
-    "runtime:621:bin:Mult->Div": "an early exit of the reachability search; the final size check refuses the same nets",
+    "kernels:<module>:const:64->65:_SMALL = 64": "_SMALL only picks the plain loop or the blocked scan below it;"
+    " both give the same",
+    "kernels:until_unbounded:bin:Add->Sub:math.isqrt(L - 1) + 1": _BLOCKS,
+    "kernels:until_unbounded:bin:Sub->Add:L - 1#2": _BLOCKS,
+    "kernels:until_unbounded:const:1->2:math.isqrt(L - 1) + 1": _BLOCKS,
+    "kernels:until_unbounded:const:1->2:L - 1#2": _BLOCKS,
+    "kernels:until:bool:Or->And:hi < lo or lo > L - 1": "an early return for an empty or out-of-trace window:"
+    " the general path gives bottom",
+    "kernels:window:bin:Sub->Add:n + w - 1": "one more block of padding (filled with the identity) changes no window's"
+    " value",
+    "monitor:_first:const:1->2:b + 1": "_first reads one sample past b only where b is the trace's end or a hit lies"
+    " in [a, b]",
+    "kernels:until:bin:Sub->Add:L - 1": "L + 1 for L - 1: a window covering the trace meets a U b with F b, which it"
+    " implies (the other Sub there, hi + lo, is killed by test_until_windows_and_empty_intervals_on_long_traces)",
+    "kernels:until:cmp0:Gt->GtE:lo > 0": "with lo = 0 the left side's window [0, -1] is empty: meeting with top"
+    " changes nothing",
+    "parse:_run:if:negated:isinstance(inner, MitlError)": "lark raises an inline transformer's errors unwrapped:"
+    " its VisitError branch is never run",
+    "checks:check_weights:const:1->2:A.Pos(1, 1)": _FALLBACK,
+    "checks:check_weights:const:1->2:A.Pos(1, 1)#2": _FALLBACK,
+    "checks:check_weights:bool:Or->And:node.pos is None or node.child.pos is None": "both positions are set by the"
+    " parser whenever either is",
+    "parse:_parse_spec.check_vars:const:1->2:A.Pos(1, 1)": _FALLBACK,
+    "parse:_parse_spec.check_vars:const:1->2:A.Pos(1, 1)#2": _FALLBACK,
+    "parse:_parse_spec:if:negated:name not in PLANTS": "looking up installed plants' entry points also when the name"
+    " is known changes nothing",
+    "reward:Neg.__str__:const:1->2:_NEG + 1": "no node has the precedence between a negation's and the next: +1 and"
+    " +2 wrap the same",
+    "reward:RExpr:const:9->10:prec = 9": "the precedence of atoms only needs to be the highest: 9 or 10 prints the"
+    " same",
+    "runtime:NetRuntime.advance_code:if:negated:not self.timed": "advance_code on a net without timed parts: the"
+    " timed update of no tree is the identity",
+    "runtime:NetRuntime.charge_code:if:negated:self.tables is not None and self.tables.charge is not None": _FAST,
+    "runtime:NetRuntime.trace_markings:if:negated:self.tables is None": _FAST,
+    "runtime:NetRuntime.obligation_arrays:bool:And->Or:self.dt is not None and self.steps is not None": "an assert"
+    " that holds either way (both are set together)",
+    "runtime:NetRuntime.__init__:const:0->1:np.zeros(0)": "the clock ends are read only by compact tables, which"
+    " set them",
+    "runtime:NetRuntime.encode:bool:And->Or:self.tables is not None and self.tables.index is not None": "an assert"
+    " that holds either way (compact tables always carry their index)",
+    "runtime:NetRuntime.clock_code:const:0->1:np.ndim(tau) == 0#2": "a 0-d array of the segment indexes the tables"
+    " as its int does",
+    "runtime:NetRuntime.__init__:bool:And->Or:p not in self._region_of and terms": "a transition into a region"
+    " place has its region as guard: writing it twice is the same",
+    "tables:build_compact:bin:FloorDiv->Div:MAX_TABLE // 16": "n * n <= MAX_TABLE // 16 and <= MAX_TABLE / 16"
+    " agree on integers",
+    "tables:build_compact:const:1.0->2.0:ends[0] - 1.0": "any time before the first clock end represents that stretch",
+    "tables:build_compact:const:1->2:np.random.default_rng(20261201).integers(1, 2 ** 63, size=S, dtype=...": "the"
+    " seed of the marking hash's weights: any seed hashes the same set apart",
+    "tables:build_compact:const:0->1:(0, 0, 0)": _UNREAD_COUNTS,
+    "tables:build_compact:const:0->1:(0, 0, 0)#2": _UNREAD_COUNTS,
+    "tables:build_compact:const:0->1:(0, 0, 0)#3": _UNREAD_COUNTS,
+    "tables:build_tables:const:1->2:(n_codes, 1)": "a second copy of the places' columns is never read: the"
+    " expressions index the first",
+    "tables:build_compact:const:1->2:-1": _RESHAPE,
+    "tables:build_compact.add:const:1->2:-1": _RESHAPE,
+    "tables:build_compact.add:const:1->2:-1#2": _RESHAPE,
+    "tables:build_tables:cmp0:Gt->GtE:n_clock_codes * n_codes * n_atom_codes > MAX_TABLE": _FAST,
+    "tables:build_tables:cmp0:Gt->GtE:n_codes * n_codes > MAX_TABLE": _FAST,
+    "tables:build_tables:bin:Mult->Div:n_clock_codes * n_codes * n_atom_codes": _FAST,
+    "tables:build_tables:bin:Mult->Div:n_clock_codes * n_codes": _FAST,
+    "tables:build_tables:bin:Mult->Div:n_codes * n_codes": _FAST,
+    "tables:build_compact:bin:Mult->Div:done * n_segs * n_atom_codes": _EARLY_EXIT,
+    "tables:build_compact:bin:Mult->Div:done * n_segs": _EARLY_EXIT,
+    "rule:region_subnets:cmp0:IsNot->Is:term.clock is not None": _REGION,
+    "rule:region_subnets:cmp0:IsNot->Is:term.age is not None": _REGION,
+    "rule:region_subnets:cmp0:IsNot->Is:term.event is not None": _REGION,
 }
-"""``module:line:operator`` of a mutant that cannot change any result -> why (from the
-survivors of ``--seed 0``; the lines are those of the commit that lists them)."""
+"""A mutant that cannot change any result (its key: module, function, operator and the mutated
+expression, as :func:`keys` writes it; no line number, so the list survives code moving) -> why.
+``tests/test_mutation_keys.py`` checks that every key still names a mutation point."""
 
 _SWAP_CMP = {
     ast.Lt: ast.LtE,
@@ -142,10 +201,7 @@ class Mutant:
     index: int  # which mutation point, in the order the walk finds them
     line: int
     what: str
-
-    @property
-    def key(self) -> str:
-        return f"{self.module}:{self.line}:{self.what}"
+    key: str  # module:function:operator:expression, as keys() names it (no line: lines move)
 
 
 def _docstring_ids(tree: ast.AST) -> set[int]:
@@ -229,6 +285,51 @@ def points(tree: ast.AST) -> list[tuple[ast.AST, str, int]]:
     return out
 
 
+def _parents(tree: ast.AST) -> dict[int, ast.AST]:
+    return {id(child): node for node in ast.walk(tree) for child in ast.iter_child_nodes(node)}
+
+
+def _function(node: ast.AST, parents: dict[int, ast.AST]) -> str:
+    """The qualified name of the function (or class) around ``node``, ``<module>`` at the top."""
+    names = []
+    while id(node) in parents:
+        node = parents[id(node)]
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.append(node.name)
+    return ".".join(reversed(names)) or "<module>"
+
+
+def _expression(node: ast.AST, what: str, parents: dict[int, ast.AST]) -> str:
+    """The source that names a mutation point: the test of an ``if``, the value of a
+    ``return``, a constant with what holds it, the node itself otherwise; one line, at most
+    70 characters."""
+    kind = what.split(":")[0]
+    target: ast.AST = node
+    if kind == "if":
+        target = node.test  # type: ignore[attr-defined]
+    elif kind == "return":
+        target = node.value  # type: ignore[attr-defined]
+    elif kind == "const" and id(node) in parents:
+        target = parents[id(node)]
+        if isinstance(target, ast.keyword):
+            target = parents.get(id(target), target)
+    text = " ".join(ast.unparse(target).split())
+    return text if len(text) <= 70 else text[:67] + "..."
+
+
+def keys(module: str, tree: ast.AST, pts: list[tuple[ast.AST, str, int]]) -> list[str]:
+    """A key per mutation point that survives lines moving: ``module:function:operator:expression``,
+    with ``#k`` for the k-th point (k >= 2) of the same function, operator and expression."""
+    parents = _parents(tree)
+    out: list[str] = []
+    seen: dict[str, int] = {}
+    for node, what, _ in pts:
+        key = f"{module}:{_function(node, parents)}:{what}:{_expression(node, what, parents)}"
+        seen[key] = seen.get(key, 0) + 1
+        out.append(key if seen[key] == 1 else f"{key}#{seen[key]}")
+    return out
+
+
 def mutate(source: str, index: int) -> tuple[str, str, int]:
     """The source with mutation point ``index`` applied: (new source, what, line)."""
     tree = ast.parse(source)
@@ -306,6 +407,56 @@ def run_tests(copy_root: Path, tests: list[str], timeout: float, log: list[str] 
     return "survived" if r.returncode == 0 else "killed"
 
 
+def table(record: dict) -> str:
+    """docs/reliability.md's table of the recorded runs: a row per module, then the commands."""
+    rows = [
+        "| module | file | points | sampled | killed | equivalent | survived | kill rate |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    commands: dict[str, list[str]] = {}
+    for m in sorted(record):
+        r = record[m]
+        rows.append(
+            f"| `{m}` | `{r['file']}` | {r['points']} | {r['sampled']} | {r['killed']} | {r['equivalent']}"
+            f" | {r['survived']} | {r['killed'] / max(1, r['killed'] + r['survived']):.0%} |"
+        )
+        commands.setdefault(f"`{r['command']}` ({r['made']})", []).append(f"`{m}`")
+    rows.append("")
+    for cmd, mods in commands.items():
+        rows.append(f"- {', '.join(mods)}: {cmd}")
+    return "\n".join(rows)
+
+
+def write_record(results: list[tuple[Mutant, str]], counts: dict[str, int], argv: list[str]) -> None:
+    """Merge this run's modules into :data:`RECORD` and rewrite the page's table from it."""
+    record = json.loads(RECORD.read_text(encoding="utf-8")) if RECORD.exists() else {}
+    made = f"{datetime.date.today().isoformat()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    for m, n_points in counts.items():
+        mine = [(mut, o) for mut, o in results if mut.module == m]
+        eq = sorted(mut.key for mut, o in mine if o == "survived" and mut.key in EQUIVALENT)
+        survivors = sorted(mut.key for mut, o in mine if o == "survived" and mut.key not in EQUIVALENT)
+        record[m] = {
+            "file": TARGETS[m][0],
+            "tests": TARGETS[m][1],
+            "points": n_points,
+            "sampled": len(mine),
+            "killed": sum(1 for _, o in mine if o in ("killed", "timeout")),
+            "equivalent": len(eq),
+            "survived": len(survivors),
+            "survivors": survivors,
+            "command": " ".join(["python tests/mutation.py", *argv]),
+            "made": made,
+        }
+    text = json.dumps(record, indent=1, sort_keys=True) + "\n"
+    page = PAGE.read_text(encoding="utf-8")
+    a, b = page.index(TABLE_BEGIN) + len(TABLE_BEGIN), page.index(TABLE_END)
+    for path, new in ((RECORD, text), (PAGE, page[:a] + "\n" + table(record) + "\n" + page[b:])):
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(new, encoding="utf-8")
+        tmp.replace(path)
+    print(f"recorded in {RECORD.relative_to(ROOT)} and {PAGE.relative_to(ROOT)}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--module", action="append", choices=sorted(TARGETS), help="repeat; default: all")
@@ -314,17 +465,22 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds per mutant's tests")
     ap.add_argument("--list", action="store_true", help="print the sampled mutants and stop")
+    ap.add_argument("--record", action="store_true", help="write the rows into docs/mutation.json and the page")
     args = ap.parse_args()
     modules = args.module or sorted(TARGETS)
     rng = random.Random(args.seed)
     plan: list[tuple[Mutant, str]] = []
+    counts: dict[str, int] = {}
     for m in modules:
         source = (ROOT / TARGETS[m][0]).read_text(encoding="utf-8")
-        pts = points(ast.parse(source))
+        tree = ast.parse(source)
+        pts = points(tree)
+        names = keys(m, tree, pts)
+        counts[m] = len(pts)
         chosen = sorted(rng.sample(range(len(pts)), min(args.sample, len(pts))))
         for i in chosen:
             new, what, line = mutate(source, i)
-            plan.append((Mutant(m, i, line, what), new))
+            plan.append((Mutant(m, i, line, what, names[i]), new))
         print(f"{m}: {len(pts)} mutation points, {len(chosen)} sampled", flush=True)
     if args.list:
         for mut, _ in plan:
@@ -382,6 +538,8 @@ def main() -> None:
         for mut in survivors:
             line = (ROOT / TARGETS[mut.module][0]).read_text().splitlines()[mut.line - 1].strip()
             print(f"  {mut.key:55} {line[:90]}")
+    if args.record:
+        write_record(results, counts, sys.argv[1:])
 
 
 if __name__ == "__main__":
