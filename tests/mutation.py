@@ -93,6 +93,7 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
 
 _BLOCKS = "the blocked until scan is correct for any block size >= 1: B only trades time for memory"
 _FAST = "switches between a fast path and the reference path, which compute the same values (tested to agree)"
+_NO_CODE = "a place code that never occurs (the root is never idle, a node below it never met or failed)"
 _REGION = "a region sub-net taken for another is stepped by the scanning rule: same markings"
 _UNREAD_COUNTS = "compact tables never have counting places: their increments are never read"
 _RESHAPE = "numpy reads any negative size in reshape as the one to infer"
@@ -166,6 +167,9 @@ EQUIVALENT: dict[str, str] = {
     "rule:region_subnets:cmp0:IsNot->Is:term.clock is not None": _REGION,
     "rule:region_subnets:cmp0:IsNot->Is:term.age is not None": _REGION,
     "rule:region_subnets:cmp0:IsNot->Is:term.event is not None": _REGION,
+    "timed:<module>:const:1->2:-1": _NO_CODE,
+    "timed:<module>:const:1->2:-1#2": _NO_CODE,
+    "timed:<module>:const:1->2:-1#3": _NO_CODE,
 }
 """A mutant that cannot change any result (its key: module, function, operator and the mutated
 expression, as :func:`keys` writes it; no line number, so the list survives code moving) -> why.
@@ -216,8 +220,9 @@ def _docstring_ids(tree: ast.AST) -> set[int]:
 
 def _inert_ids(tree: ast.AST) -> set[int]:
     """Nodes whose mutation cannot change a result by construction: type annotations (strings
-    under ``from __future__ import annotations``) and ``strict=True`` of ``zip`` (it only
-    checks lengths that are equal), so they are no mutation points."""
+    under ``from __future__ import annotations``), ``strict=True`` of ``zip`` (it only
+    checks lengths that are equal) and ``compare=`` and ``repr=`` of a dataclass ``field`` (how
+    objects compare and print, never a result), so they are no mutation points."""
     ids: set[int] = set()
     for node in ast.walk(tree):
         notes = []
@@ -227,7 +232,7 @@ def _inert_ids(tree: ast.AST) -> set[int]:
             notes += [a.annotation for a in (node.args.vararg, node.args.kwarg) if a is not None]
         elif isinstance(node, ast.AnnAssign):
             notes.append(node.annotation)
-        elif isinstance(node, ast.keyword) and node.arg == "strict":
+        elif isinstance(node, ast.keyword) and node.arg in ("strict", "compare", "repr"):
             notes.append(node.value)
         for n in notes:
             if n is not None:

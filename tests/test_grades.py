@@ -97,3 +97,46 @@ def test_p1_graded_and_shaped_rewards_by_hand(reward, mix):
     np.testing.assert_array_equal(
         rt.reward_code(codes, codes, x[:2]), rt.reward(rt.decode(codes), rt.decode(codes), x[:2])
     )
+
+
+def _scales(prop: str) -> tuple[float, ...]:
+    return Grader.of(parse_spec(f"{PLANT}prop a = {prop}\nformula F a"), ("a",)).scales[0]
+
+
+def test_scales_below_one_and_on_the_grid_by_hand():
+    # 0.5 - |q| over q in [-1, 1]: +-0.5 at most, a scale under 1 is kept
+    assert _scales("abs(q) < 0.5") == (0.5,)
+    # |q| - 5 is largest in size at q = 0, which the grid of 4096 points (an even count over a
+    # symmetric box) misses by one step: 2 / 4095 apart, the nearest points are +-1 / 4095
+    assert _scales("abs(q) > 5") == (5.0 - 1.0 / 4095,)
+    # a comparison of two constants has its own margin as scale: a grade of +-1
+    g = Grader.of(parse_spec(f"{PLANT}prop a = 0.5 > 0 and q > 2\nprop b = 0.5 > 0\nformula F a"), ("a", "b"))
+    assert g.scales == ((0.5, 3.0), (0.5,))
+    got = g.grades({"q": np.array([0.0, 1.0]), "qdot": np.zeros(2)})
+    np.testing.assert_allclose(got, [[-2.0 / 3.0, 1.0], [-1.0 / 3.0, 1.0]], rtol=0, atol=1e-15)
+
+
+def test_a_grader_of_no_variables_grades_one_state():
+    g = Grader.of(parse_spec(f"{PLANT}prop b = 0.5 > 0\nformula F b"), ("b",))
+    np.testing.assert_array_equal(g.grades({}), [[1.0]])
+
+
+def test_a_margin_the_monitor_reads_as_nan_grades_zero():
+    """q / qdot at 0 / 0 is nan: neither near nor far, 0 (the monitor's robustness reads it so)."""
+    g = Grader.of(parse_spec(f"{PLANT}prop a = q / qdot > 1\nformula F a"), ("a",))
+    got = g.grades({"q": np.array([0.0, 2.0]), "qdot": np.array([0.0, 1.0])})[:, 0]
+    assert got[0] == 0.0 and got[1] > 0.0
+
+
+def test_the_box_grid_holds_at_most_grid_points_and_two_per_axis():
+    from mitlc.spec.grades import GRID_POINTS, _box_grid
+
+    one = _box_grid(["q"], {"q": (-1.0, 1.0)})
+    assert one is not None and len(one["q"]) == GRID_POINTS == 4096
+    assert one["q"][0] == -1.0 and one["q"][-1] == 1.0
+    names = [f"v{i}" for i in range(12)]  # 4096 ** (1 / 12) = 2: the box's corners
+    twelve = _box_grid(names, {n: (0.0, 1.0) for n in names})
+    assert twelve is not None and all(len(twelve[n]) == 2**12 for n in names)
+    assert sorted(set(twelve["v0"].tolist())) == [0.0, 1.0]
+    assert _box_grid([], {}) == {}
+    assert _box_grid(["q"], {}) is None

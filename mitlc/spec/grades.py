@@ -30,7 +30,6 @@ margins, clipped).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -118,11 +117,8 @@ class Grader:
     @staticmethod
     def of(spec: Spec, atoms: Sequence[str]) -> Grader:
         """The grader of ``atoms`` (the reward system's order), scaled by the spec's plant bounds."""
-        bounds: dict[str, tuple[float, float]] = {}
-        if spec.plant is not None:
-            for v in spec.plant.state:
-                if math.isfinite(v.lo) and math.isfinite(v.hi) and v.hi > v.lo:
-                    bounds[v.name] = (float(v.lo), float(v.hi))
+        # a StateVar's bounds are finite with lo < hi (checked when it is built)
+        bounds = {v.name: (float(v.lo), float(v.hi)) for v in spec.plant.state} if spec.plant is not None else {}
         preds, scales = [], []
         for a in atoms:
             pred = spec.prop(a).pred
