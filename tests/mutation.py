@@ -93,6 +93,7 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
 
 _BLOCKS = "the blocked until scan is correct for any block size >= 1: B only trades time for memory"
 _FAST = "switches between a fast path and the reference path, which compute the same values (tested to agree)"
+_SAME_SIZE = "grows the array to the size it has: the same values"
 _NO_CODE = "a place code that never occurs (the root is never idle, a node below it never met or failed)"
 _REGION = "a region sub-net taken for another is stepped by the scanning rule: same markings"
 _UNREAD_COUNTS = "compact tables never have counting places: their increments are never read"
@@ -167,6 +168,21 @@ EQUIVALENT: dict[str, str] = {
     "rule:region_subnets:cmp0:IsNot->Is:term.clock is not None": _REGION,
     "rule:region_subnets:cmp0:IsNot->Is:term.age is not None": _REGION,
     "rule:region_subnets:cmp0:IsNot->Is:term.event is not None": _REGION,
+    "online:_Running.values:cmp0:Lt->LtE:self.acc.shape[1] < m": _SAME_SIZE,
+    "online:_RunningUntil.values:cmp0:Lt->LtE:have < m": _SAME_SIZE,
+    "online:_Running.values:cmp0:Gt->GtE:f_new > self.f": "with f_new = f the block of newly sealed samples is"
+    " empty: no window starts in it, nothing changes",
+    "online:_Engine.__init__:const:1->2:-1": "advance() sets k before any value is read",
+    "online:_Engine.vals:cmp0:LtE->Lt:q + g.h <= k": "a value kept as final one sample later: until then it is"
+    " computed again, the same",
+    "online:_Running.values:const:False->True:eng.vals(kid, first, k, fixed=False)": "the tail ends at k: no final"
+    " value is ever stored or found for it",
+    "online:_atom_names:call:removed:seen.add(id(n))": "a shared subformula visited again adds the same names",
+    "online:_Node.__init__:const:0->1:lo=0": "nodes built without lo are no temporal operators: lo is never read",
+    "online:_Node.__init__:const:0.0->1.0:hi=0.0": "nodes built without hi are no temporal operators: hi is never read",
+    "online:_Node.__init__:const:False->True:value=False": "only constants read value, and each is built with its own",
+    "online:_Engine._compute:const:2->3:(1, -1, 2)": "a node with an unbounded horizon is never constant (mono 2):"
+    " 2 and 3 both miss it",
     "timed:<module>:const:1->2:-1": _NO_CODE,
     "timed:<module>:const:1->2:-1#2": _NO_CODE,
     "timed:<module>:const:1->2:-1#3": _NO_CODE,
@@ -316,6 +332,10 @@ def _expression(node: ast.AST, what: str, parents: dict[int, ast.AST]) -> str:
         target = node.value  # type: ignore[attr-defined]
     elif kind == "const" and id(node) in parents:
         target = parents[id(node)]
+        if isinstance(target, ast.arguments):  # a parameter's default: name=default
+            named = list(zip(reversed(target.posonlyargs + target.args), reversed(target.defaults), strict=False))
+            named += list(zip(target.kwonlyargs, target.kw_defaults, strict=True))
+            return next(f"{a.arg}={ast.unparse(d)}" for a, d in named if d is node)
         if isinstance(target, ast.keyword):
             target = parents.get(id(target), target)
     text = " ".join(ast.unparse(target).split())

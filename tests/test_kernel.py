@@ -177,6 +177,22 @@ def test_train_with_auto_equals_numpy() -> None:
     assert same(a.xi, b.xi) and same(a.theta, b.theta)
 
 
+def test_compiled_in_memory_where_the_disk_cache_is_off(monkeypatch) -> None:
+    """MITLC_CACHE_DIR empty: the trial is compiled in memory by ``kernel.jit`` (numba, IEEE
+    order) for the process, and trains to the numpy trial's numbers."""
+    pytest.importorskip("numba")
+    from mitlc.learn.sacpn import sacpn as sacpn_module
+
+    monkeypatch.setenv("MITLC_CACHE_DIR", "")
+    monkeypatch.setattr(sacpn_module, "_KERNELS", {})
+    rs = rs_of("pendulum/p3_avoid_speed_limit", "permanent")
+    a = Sacpn(rs, SacpnSettings(kernel="numpy"), runs=2, seed=3)
+    b = Sacpn(rs, SacpnSettings(kernel="numba"), runs=2, seed=3)
+    assert b.kernel == "numba" and type(b._kernel_fn).__name__ == "CPUDispatcher"
+    assert same(a.train(3), b.train(3))
+    assert same(a.xi, b.xi) and same(a.theta, b.theta)
+
+
 def test_compiled_kernel_to_the_bit_in_a_portable_process() -> None:
     """Where this machine's numpy rounds sin/cos/exp its own way: the bits, with numpy at its baseline."""
     pytest.importorskip("numba")

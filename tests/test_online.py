@@ -138,3 +138,42 @@ def test_bad_samples(sample, message: str) -> None:
 def test_bad_settings(dt, runs) -> None:
     with pytest.raises(InputError):
         OnlineMonitor(ABC, dt, runs=runs)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        # unbounded F, G over bounded operands, windows starting later than t (the running aggregate)
+        "F[1,inf) G[0,1] a",
+        "G[1.5,inf) F[0,1] a",
+        "F[0,inf) (a & F[0.5,1] b)",
+        # unbounded until over bounded operands (the running until), with and without a late start
+        "a U[1,inf) b",
+        "F[0,1] a U[1.5,inf) G[0,0.5] b",
+        "(a | b) U[0,inf) F[0.5,1] c",
+        "a R[1,inf) G[0,1] b",
+        # bounded windows over unbounded operands, starting later than t
+        "F[1,2] G a",
+        "G[1,2.5] F b",
+        "F[0.5,2] (a U b)",
+        "a U[1,2] G b",
+        # unbounded over unbounded, monotone (one end of the window) and not (the prefix again)
+        "F[1,inf) G a",
+        "G[1,inf) F a",
+        "F[1,inf) (G a & F b)",
+        "G[0.5,inf) (F a | G b)",
+        "G (a U[1,inf) b)",
+        "F[1,inf) (a U G b)",
+        # windows that start past a short prefix, constants in the operands
+        "F[3,inf) a",
+        "G[2,inf) (true & F[0,1] a)",
+        "F[1,inf) (false | G[0,1] b)",
+    ],
+)
+@pytest.mark.parametrize("seed", range(4))
+def test_each_evaluation_path_every_prefix(text: str, seed: int) -> None:
+    """Every path of the online evaluation (running aggregates, running untils, bounded windows
+    over unbounded operands, monotone ends, the prefix read again), with windows that start
+    later than their sample, on four runs of 30 samples: every prefix as the offline monitor."""
+    X = np.random.default_rng(seed).choice(VALUES, size=(4, 30, 3))
+    _every_prefix(ABC, parse_formula(text), X, 0.5, ("x", "y", "z"))
