@@ -253,6 +253,31 @@ def test_fallback_for_an_environment() -> None:
         assert "environment" in (agent.kernel_reason or "")
 
 
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        ("no kernel_step", "plant 'pendulum' has no kernel_step (its one-step map for one run)"),
+        ("shaped", "the reward is graded (reward = shaped): it reads the state, not only the marking"),
+    ],
+)
+def test_fallback_reasons(change: str, reason: str) -> None:
+    """kernel = auto trains on numpy, saying why, where the fused trial cannot: a plant without
+    its one-step map (a user's plant file may leave it out), a reward that reads the state."""
+    import dataclasses
+
+    spec = load_spec("pendulum/p1_swing_up")
+    options = CompileOptions.from_spec(spec)
+    if change == "no kernel_step":
+        spec = dataclasses.replace(spec, env_plant=dataclasses.replace(spec.plant, kernel_step=None))
+    else:
+        options = CompileOptions.from_spec(spec, reward=change)
+    agent = Sacpn(compile_spec(spec, options), SacpnSettings(kernel="auto"), runs=1, seed=0)
+    assert agent.kernel == "numpy"
+    assert fk.unsupported(agent) == reason
+    if fk.numba_available():
+        assert agent.kernel_reason == reason
+
+
 def test_kernel_setting_is_checked(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(TrainingError, match="unknown kernel"):
         SacpnSettings(kernel="fast").check()

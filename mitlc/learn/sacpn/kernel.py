@@ -123,11 +123,10 @@ def rbf_kernel(jit_fn: Callable) -> Callable:
     return jit_fn(rbf)
 
 
-def trial_kernel(
-    plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool = True, timed: bool = False
-) -> Callable:
+def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool, timed: bool) -> Callable:
     """The fused trial for one plant step and one atom-code function, compiled by ``jit_fn``;
-    ``timed``: for nets with timed obligations (else their engine is left out: a shorter compile).
+    ``one_input``: the plant has one input; ``timed``: for nets with timed obligations (else
+    their engine is left out: a shorter compile).
 
     ``trial(x, noise, code0, xi, theta, ret, next_code, clock, reward_tab, reward_full,
     marked, marked_c, pen, pen_left, pc, fc..., scalars, u_lo, u_hi, ..., flags, obligations...,
