@@ -93,6 +93,13 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
 
 _BLOCKS = "the blocked until scan is correct for any block size >= 1: B only trades time for memory"
 _FAST = "switches between a fast path and the reference path, which compute the same values (tested to agree)"
+_ROOT_FIRST = "the root's values at samples 0 .. 1 begin with sample 0's: [:, 0] is the same"
+_AT_K = "a value at the prefix's last sample (q = k) is never kept as final either way"
+_ONE_COLUMN = "the last sample's window has one column: [:, :2] is [:, :1]"
+_FIRST_WIDTH = "the atom buffers are replaced at the first sample (capacity 0): their first width is never read"
+_NONE_AS_0 = "a monotony of None is read as 0 (neither) wherever one is compared"
+_FALSY = "None is falsy as False: the result is read as a truth value (any, not)"
+_SEALED = "the sealed block ends k - h: its values are final, and keeping them as final changes none"
 _SAME_SIZE = "grows the array to the size it has: the same values"
 _NO_CODE = "a place code that never occurs (the root is never idle, a node below it never met or failed)"
 _REGION = "a region sub-net taken for another is stepped by the scanning rule: same markings"
@@ -156,6 +163,7 @@ EQUIVALENT: dict[str, str] = {
     "tables:build_tables:const:1->2:(n_codes, 1)": "a second copy of the places' columns is never read: the"
     " expressions index the first",
     "tables:build_compact:const:1->2:-1": _RESHAPE,
+    "grades:_box_grid:const:1->2:-1": _RESHAPE,
     "tables:build_compact.add:const:1->2:-1": _RESHAPE,
     "tables:build_compact.add:const:1->2:-1#2": _RESHAPE,
     "tables:build_tables:cmp0:Gt->GtE:n_clock_codes * n_codes * n_atom_codes > MAX_TABLE": _FAST,
@@ -183,6 +191,22 @@ EQUIVALENT: dict[str, str] = {
     "online:_Node.__init__:const:False->True:value=False": "only constants read value, and each is built with its own",
     "online:_Engine._compute:const:2->3:(1, -1, 2)": "a node with an unbounded horizon is never constant (mono 2):"
     " 2 and 3 both miss it",
+    "online:OnlineMonitor.reset:const:0->1:(self.R, 0)": _FIRST_WIDTH,
+    "online:OnlineMonitor.reset:const:0->1:(self.R, 0)#2": _FIRST_WIDTH,
+    "online:_monotone:return:None:0": _NONE_AS_0,
+    "online:_monotone:return:None:0#2": _NONE_AS_0,
+    "online:_growing:return:None:False": _FALSY,
+    "online:_growing:return:None:False#2": _FALSY,
+    "online:_RunningUntil.values:const:False->True:eng.vals(left, first, f_new, fixed=False)": _SEALED,
+    "online:_RunningUntil.values:const:False->True:eng.vals(right, first, f_new, fixed=False)": _SEALED,
+    "online:_Running.values:const:False->True:eng.vals(kid, first, f_new, fixed=False)": _SEALED,
+    "online:OnlineMonitor.update:const:0->1:self._bool.vals(self._root, 0, 0)#2": _ROOT_FIRST,
+    "online:OnlineMonitor.update:const:0->1:self._real.vals(self._root, 0, 0)#2": _ROOT_FIRST,
+    "online:_Engine._compute:const:False->True:self.vals(g.kids[1], k, k, fixed=False)": _AT_K,
+    "online:_Engine._compute:const:False->True:self.vals(kid, k, k, fixed=False)": _AT_K,
+    "online:_Engine._compute:const:False->True:self.vals(kid, k, k, fixed=False)#2": _AT_K,
+    "online:_Engine._compute:const:1->2::1": _ONE_COLUMN,
+    "online:_Engine._compute:const:1->2::1#2": _ONE_COLUMN,
     "timed:<module>:const:1->2:-1": _NO_CODE,
     "timed:<module>:const:1->2:-1#2": _NO_CODE,
     "timed:<module>:const:1->2:-1#3": _NO_CODE,

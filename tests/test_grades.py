@@ -140,3 +140,10 @@ def test_the_box_grid_holds_at_most_grid_points_and_two_per_axis():
     assert sorted(set(twelve["v0"].tolist())) == [0.0, 1.0]
     assert _box_grid([], {}) == {}
     assert _box_grid(["q"], {}) is None
+
+
+def test_without_plant_bounds_the_scale_is_one():
+    """No plant, no box: the raw margin, clipped (the module text)."""
+    g = Grader.of(parse_spec("prop a = x > 0.5\nformula F a"), ("a",))
+    assert g.scales == ((1.0,),)
+    np.testing.assert_allclose(g.grades({"x": np.array([0.7, 2.0, -3.0])})[:, 0], [0.2, 1.0, -1.0], atol=1e-15)

@@ -74,6 +74,10 @@ def test_shipped_specs_every_prefix(name: str) -> None:
         ("G (a -> F[0,1] b)", True),
         ("a U b", True),
         ("G[0,1] F[1,2] a", True),
+        ("a U G b", False),  # an unbounded until over an unbounded operand
+        ("F (G a & true)", True),  # a constant side keeps the other's monotony
+        ("F G[0,1] G a", True),  # a bounded window of a monotone signal is monotone: its value at one end
+        ("G F[0,1] F a", True),
         ("G (a U b)", False),  # an unbounded G over a non-monotone unbounded until
         ("F (a & G b)", False),
     ],
@@ -157,6 +161,9 @@ def test_bad_settings(dt, runs) -> None:
         "G[1,2.5] F b",
         "F[0.5,2] (a U b)",
         "a U[1,2] G b",
+        # a running until asked for a window that ends before the prefix does
+        "F[0,2] (a U F[0,3] b)",
+        "G[0,1.5] (a U[0.5,inf) G[0,2] b)",
         # unbounded over unbounded, monotone (one end of the window) and not (the prefix again)
         "F[1,inf) G a",
         "G[1,inf) F a",
@@ -177,3 +184,13 @@ def test_each_evaluation_path_every_prefix(text: str, seed: int) -> None:
     later than their sample, on four runs of 30 samples: every prefix as the offline monitor."""
     X = np.random.default_rng(seed).choice(VALUES, size=(4, 30, 3))
     _every_prefix(ABC, parse_formula(text), X, 0.5, ("x", "y", "z"))
+
+
+def test_a_bad_sample_is_named_by_its_run_and_index() -> None:
+    """Two good samples, then run 1's x is nan: sample 2 of run 1, and the monitor keeps what it had."""
+    mon = OnlineMonitor(ABC, 0.5, parse_formula("F a"), runs=2)
+    mon.update(np.zeros((2, 3)))
+    mon.update(np.ones((2, 3)))
+    with pytest.raises(InputError, match=r"state variable 'x' is not finite \(run 1, sample 2: nan\)"):
+        mon.update([[0.0, 0.0, 0.0], [math.nan, 0.0, 0.0]])
+    assert mon.k == 1 and mon.satisfied.tolist() == [True, True]
