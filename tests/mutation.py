@@ -95,8 +95,8 @@ SELECT: dict[str, str] = {
     # the fused kernel's tests less the compiled trials past the first spec's (each compiles a
     # kernel for several seconds, and the uncompiled kernel, its same Python code, is compared
     # with numpy on every spec): a survivor costs 40 s instead of 2 minutes
-    "fused": "not compiled_kernel_with_timed_obligations and not compiled_kernel_variants and not portable_process"
-    " and not timed_obligations_train_on_the_kernel and not two_inputs_compiled",
+    "fused": "not test_compiled_kernel_with_timed_obligations and not test_compiled_kernel_variants"
+    " and not portable_process and not timed_obligations_train_on_the_kernel and not test_two_inputs_compiled",
 }
 """Module -> the ``pytest -k`` expression that selects from its tests, where not all are run."""
 

@@ -147,3 +147,15 @@ def test_without_plant_bounds_the_scale_is_one():
     g = Grader.of(parse_spec("prop a = x > 0.5\nformula F a"), ("a",))
     assert g.scales == ((1.0,),)
     np.testing.assert_allclose(g.grades({"x": np.array([0.7, 2.0, -3.0])})[:, 0], [0.2, 1.0, -1.0], atol=1e-15)
+
+
+def test_margins_by_hand():
+    from mitlc.spec.grades import margin
+
+    a, b = np.array([1.0, -2.0, 0.5]), np.array([3.0, 1.0, 0.5])
+    np.testing.assert_array_equal(margin("<", a, b), [2.0, 3.0, 0.0])
+    np.testing.assert_array_equal(margin("<=", a, b), [2.0, 3.0, 0.0])
+    np.testing.assert_array_equal(margin(">", a, b), [-2.0, -3.0, 0.0])
+    np.testing.assert_array_equal(margin(">=", a, b), [-2.0, -3.0, 0.0])
+    np.testing.assert_array_equal(margin("==", a, b), [-2.0, -3.0, -0.0])
+    np.testing.assert_array_equal(margin("!=", a, b), [2.0, 3.0, 0.0])

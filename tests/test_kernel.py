@@ -115,6 +115,14 @@ def test_uncompiled_kernel_is_the_numpy_trial(name: str, variant: int) -> None:
     same_trials(rs_of(name), SacpnSettings(kernel="numpy", **SMALL, **VARIANTS[variant]), fk.identity, trials=2)
 
 
+def test_uncompiled_kernel_at_the_input_bounds() -> None:
+    """Problem 1's weak motor (u_max 3) with wide exploration: the policy's output passes the
+    input box, and the actor's update is held where it would push further out (anti-windup)."""
+    rs = rs_of("pendulum/p1_swing_up")
+    st = SacpnSettings(kernel="numpy", rbf=(4, 3), trial_s=0.9, sigma_frac=1.0, alpha_a=2.0)
+    same_trials(rs, st, fk.identity, trials=4)
+
+
 @pytest.mark.parametrize("violations", ["permanent", "counted"])
 def test_uncompiled_kernel_with_violations_and_the_penalty_ramp(violations: str) -> None:
     rs = rs_of("pendulum/p2_avoid", violations)
@@ -189,6 +197,9 @@ def test_compiled_in_memory_where_the_disk_cache_is_off(monkeypatch) -> None:
     a = Sacpn(rs, SacpnSettings(kernel="numpy"), runs=2, seed=3)
     b = Sacpn(rs, SacpnSettings(kernel="numba"), runs=2, seed=3)
     assert b.kernel == "numba" and type(b._kernel_fn).__name__ == "CPUDispatcher"
+    # IEEE order kept (no fastmath), numpy's error model: what makes the bits numpy's
+    assert b._kernel_fn.targetoptions["fastmath"] is False
+    assert b._kernel_fn.targetoptions["error_model"] == "numpy"
     assert same(a.train(3), b.train(3))
     assert same(a.xi, b.xi) and same(a.theta, b.theta)
 
