@@ -468,6 +468,11 @@ def run_tests(
     return "survived" if r.returncode == 0 else "killed"
 
 
+def rate(counts: dict) -> float:
+    """The kill rate: killed / (killed + survived), equivalent mutants left out."""
+    return counts["killed"] / max(1, counts["killed"] + counts["survived"])
+
+
 def table(record: dict) -> str:
     """docs/reliability.md's table of the recorded runs: a row per module, then the commands."""
     rows = [
@@ -479,7 +484,7 @@ def table(record: dict) -> str:
         r = record[m]
         rows.append(
             f"| `{m}` | `{r['file']}` | {r['points']} | {r['sampled']} | {r['killed']} | {r['equivalent']}"
-            f" | {r['survived']} | {r['killed'] / max(1, r['killed'] + r['survived']):.0%} |"
+            f" | {r['survived']} | {rate(r):.0%} |"
         )
         commands.setdefault(f"`{r['command']}` ({r['made']})", []).append(f"`{m}`")
     rows.append("")
@@ -491,23 +496,30 @@ def table(record: dict) -> str:
     return "\n".join(rows)
 
 
+def tally(results: list[tuple[Mutant, str]], module: str) -> dict:
+    """One module's outcomes: how many sampled, killed (a timeout counts), equivalent and
+    surviving, and the survivors' keys."""
+    mine = [(mut, o) for mut, o in results if mut.module == module]
+    survivors = sorted(mut.key for mut, o in mine if o == "survived" and mut.key not in EQUIVALENT)
+    return {
+        "sampled": len(mine),
+        "killed": sum(1 for _, o in mine if o in ("killed", "timeout")),
+        "equivalent": sum(1 for mut, o in mine if o == "survived" and mut.key in EQUIVALENT),
+        "survived": len(survivors),
+        "survivors": survivors,
+    }
+
+
 def write_record(results: list[tuple[Mutant, str]], counts: dict[str, int], argv: list[str]) -> None:
     """Merge this run's modules into :data:`RECORD` and rewrite the page's table from it."""
     record = json.loads(RECORD.read_text(encoding="utf-8")) if RECORD.exists() else {}
     made = f"{datetime.date.today().isoformat()}, {os.cpu_count()} cores, Python {platform.python_version()}"
     for m, n_points in counts.items():
-        mine = [(mut, o) for mut, o in results if mut.module == m]
-        eq = sorted(mut.key for mut, o in mine if o == "survived" and mut.key in EQUIVALENT)
-        survivors = sorted(mut.key for mut, o in mine if o == "survived" and mut.key not in EQUIVALENT)
         record[m] = {
             "file": TARGETS[m][0],
             "tests": TARGETS[m][1] + ([f"-k {SELECT[m]}"] if m in SELECT else []),
             "points": n_points,
-            "sampled": len(mine),
-            "killed": sum(1 for _, o in mine if o in ("killed", "timeout")),
-            "equivalent": len(eq),
-            "survived": len(survivors),
-            "survivors": survivors,
+            **tally(results, m),
             "command": " ".join(["python tests/mutation.py", *argv]),
             "made": made,
         }
@@ -595,12 +607,8 @@ def main() -> None:
     print(f"\n{len(results)} mutants in {(time.perf_counter() - t0) / 60:.1f} min (seed {args.seed})")
     print(f"{'module':8} {'killed':>7} {'survived':>9} {'equivalent':>11} {'kill rate':>10}")
     for m in modules:
-        rows = [o for mut, o in results if mut.module == m]
-        eq = sum(1 for mut, o in results if mut.module == m and o == "survived" and mut.key in EQUIVALENT)
-        killed = sum(1 for o in rows if o in ("killed", "timeout"))
-        survived = sum(1 for o in rows if o == "survived") - eq
-        rate = killed / max(1, killed + survived)
-        print(f"{m:8} {killed:7} {survived:9} {eq:11} {rate:10.0%}")
+        t = tally(results, m)
+        print(f"{m:8} {t['killed']:7} {t['survived']:9} {t['equivalent']:11} {rate(t):10.0%}")
     survivors = [mut for mut, o in results if o == "survived" and mut.key not in EQUIVALENT]
     if survivors:
         print("\nsurvivors (not known to be equivalent):")
