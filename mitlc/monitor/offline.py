@@ -681,11 +681,14 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     satisfied = truth[:, 0].copy()
     robustness = rob[:, 0].astype(float)
     violation = np.full(ev.R, np.nan)
-    failing: list[str | None] = []
+    failing: list[str | None] = [None] * ev.R
     if not satisfied.all():
         violation = np.where(satisfied, np.nan, ev.settle(f)[:, 0] * ev.dt)
-    for r in range(ev.R):
-        failing.append(None if satisfied[r] else str(_blame_root(f, ev, r, 0)))
+    texts: dict[int, str] = {}  # a part's text by its identity: a few parts blamed over many runs
+    for r in np.flatnonzero(~satisfied):
+        part = _blame_root(f, ev, int(r), 0)
+        text = texts.get(id(part))
+        failing[r] = text if text is not None else texts.setdefault(id(part), str(part))
     return MonitorResult(satisfied, robustness, violation, tuple(failing))
 
 
