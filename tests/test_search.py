@@ -315,3 +315,61 @@ def test_harmonics_add_periodic_terms_in_time_that_a_folder_keeps(tmp_path) -> N
     np.testing.assert_array_equal(loaded.weights, again.weights)
     r = _cli("train", "--spec", str(spec), "--learner", "search", "--set", "harmonics=-1", "--out", str(tmp_path / "x"))
     assert r.exit_code == 2 and "harmonics" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+
+
+def test_product_features_make_go_to_point_steering_one_weighted_sum() -> None:
+    """With ``products``, ``dy cos(theta) - dx sin(theta)`` (the turn towards a point) and
+    ``dx cos(theta) + dy sin(theta)`` (the speed towards it) are sums of the features: gains written
+    by hand from the goal's place drive the unicycle into it from every corner of the init box."""
+    sr = _runs(TWO_INPUTS, 1, products=True)
+    ep = sr.episode
+    b = 4  # x, y, sin and cos of theta's difference from the box's centre
+    assert ep.n_state_features(True) == b + b * (b + 1) // 2
+    assert sr.n_features == 2 * (b + b * (b + 1) // 2) + 2
+    x = np.array([[-1.3, 0.2, 0.4]])
+    d = x - ep.centre
+    z = d / ep.scale
+    base = [z[0, 0], z[0, 1], np.sin(d[0, 2]), np.cos(d[0, 2])]
+    pairs = [base[i] * base[j] for i in range(b) for j in range(i, b)]
+    np.testing.assert_allclose(ep.normalise(x, True)[0], base + pairs, rtol=0, atol=1e-15)
+    assert ep.centre[2] == 0.0  # so theta's sine and cosine are the features' own
+    gx, gy = 1.0, 0.0
+    (cx, cy, _), (sx, sy, _) = ep.centre, ep.scale
+    col = {name: k for k, name in enumerate(["x", "y", "sin", "cos", "xx", "xy", "xsin", "xcos", "yy", "ysin", "ycos"])}
+    W = np.zeros((sr.n_features, 2))
+    # speed: 3 (dx cos + dy sin), dx = (gx - cx) - sx z_x, dy = (gy - cy) - sy z_y
+    for name, w in (("cos", gx - cx), ("xcos", -sx), ("sin", gy - cy), ("ysin", -sy)):
+        W[col[name], 0] = 3 * w
+    # turn: 5 (dy cos - dx sin); omega's box is symmetric, so tanh's zero is no turn
+    for name, w in (("cos", gy - cy), ("ycos", -sy), ("sin", -(gx - cx)), ("xsin", sx)):
+        W[col[name], 1] = 5 * w
+    sr.weights[0] = W
+    corners = np.array([[a, c, t] for a in (-1.6, -1.2) for c in (-0.4, 0.4) for t in (-0.5, 0.5)])
+    assert _judge(sr, corners).all()
+    sr.weights[0] = 0.0
+    assert not _judge(sr, corners).any()  # standing still at the box's centre input does not get there
+
+
+def test_scale_floor_sets_how_far_from_the_init_box_a_feature_stays_near_1(tmp_path) -> None:
+    from mitlc.learn.search import load_search
+
+    sr = _runs(TWO_INPUTS, 2, seed=1, scale_floor=1.0)
+    z = sr.episode.normalise(np.array([[2.0, -2.0, 0.5]]))
+    # x's and y's scale is their half-range, 2 m (the init box is narrower); theta's is pi
+    np.testing.assert_allclose(z[0], [(2.0 + 1.4) / 2.0, -2.0 / 2.0, 0.5 / np.pi], rtol=1e-12)
+    narrow = _runs(TWO_INPUTS, 2, seed=1).episode.normalise(np.array([[2.0, -2.0, 0.5]]))
+    np.testing.assert_allclose(narrow[0], [(2.0 + 1.4) / 0.2, -2.0 / 0.4, 0.5 / 0.5], rtol=1e-12)
+    spec = tmp_path / "two.mitl"
+    spec.write_text(TWO_INPUTS)
+    out = tmp_path / "s"
+    sets = ("--set", "scale_floor=1", "--set", "products=true")
+    args = ("--learner", "search", *sets, "--runs", "2", "--trials", "2", "--seed", "1", "--out", str(out))
+    assert _cli("train", "--spec", str(spec), *args).exit_code == 0
+    loaded = load_search(out)
+    assert loaded.settings.scale_floor == 1.0 and loaded.settings.products is True
+    again = _runs(TWO_INPUTS, 2, seed=1, scale_floor=1.0, products=True)
+    again.train(2)
+    np.testing.assert_array_equal(loaded.weights, again.weights)
+    for bad in ("scale_floor=0", "scale_floor=nan", "scale_floor=-1"):
+        r = _cli("train", "--spec", str(spec), "--learner", "search", "--set", bad, "--out", str(tmp_path / "x"))
+        assert r.exit_code == 2 and "scale_floor" in r.output and len(r.output.strip().splitlines()) == 1, r.output

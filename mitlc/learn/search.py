@@ -14,8 +14,10 @@ The policy of a run, for a plant with state ``x`` (``n`` variables) and ``m`` in
     u   = lo + (tanh(phi W) + 1) / 2 (hi - lo)    (W: (2n + 2, m), each input in its own box)
 
 ``centre`` and ``scale`` come from the spec's ``init`` box (its centre and half-widths, at least
-a tenth of the state's half-range, so a variable pinned by ``init`` is still seen on its own
-scale): a gain of 1 moves an input through most of its box for a state anywhere in the init box.
+``scale_floor`` = a tenth of the state's half-range, so a variable pinned by ``init`` is still seen on
+its own scale): a gain of 1 moves an input through most of its box for a state anywhere in the init
+box. ``scale_floor = 1`` scales each variable to its half-range instead (features near 1 wherever the
+state goes); ``products`` makes the state's features quadratic (:func:`state_features`).
 
 ``harmonics = H`` adds ``sin(2 pi k tau)`` and ``cos(2 pi k tau)``, ``k = 1 .. H``, to ``phi``: a
 periodic schedule in time, which a patrol or an oscillation needs and a linear one cannot give.
@@ -74,9 +76,6 @@ FILE = "search.npz"
 record (JSON text: the spec, the settings, runs, seed, generations, the plant's record)."""
 MAX_META_CHARS = 1 << 22
 
-SCALE_FLOOR = 0.1
-"""A variable's scale is at least this share of its state half-range (a variable ``init`` pins)."""
-
 
 def default_generations(n_steps: int) -> int:
     """Generations per run when ``--trials`` is not given: 100, whatever the horizon (a generation is
@@ -99,6 +98,14 @@ class SearchSettings:
     """Whether the gains may change linearly over the horizon (the features ``tau z`` and ``tau``)."""
     harmonics: int = 0
     """Periodic terms in time: ``sin(2 pi k tau)``, ``cos(2 pi k tau)`` for ``k = 1 .. harmonics``."""
+    scale_floor: float = 0.1
+    """A state variable's scale is at least this share of its half-range (:class:`_Episode`): 0.1 lets
+    a variable ``init`` pins be seen on its own scale; 1 scales every variable to its half-range, so a
+    feature stays near 1 however far the state travels from the ``init`` box."""
+    products: bool = False
+    """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
+    cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
+    surface is one weighted sum."""
 
     def check(self) -> None:
         if self.popsize < 4:
@@ -109,6 +116,8 @@ class SearchSettings:
             raise InputError(f"starts must be at least 1, got {self.starts}", file="--set")
         if not (np.isfinite(self.sigma0) and self.sigma0 > 0):
             raise InputError(f"sigma0 must be a positive number, got {self.sigma0}", file="--set")
+        if not (np.isfinite(self.scale_floor) and self.scale_floor > 0):
+            raise InputError(f"scale_floor must be a positive number, got {self.scale_floor}", file="--set")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -117,6 +126,34 @@ class SearchSettings:
     def from_dict(cls, d: dict[str, Any]) -> SearchSettings:
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in d.items() if k in names})
+
+
+def state_features(d: np.ndarray, scale: np.ndarray, angles: np.ndarray, products: bool) -> np.ndarray:
+    """The state's features from the differences ``d`` ``(B, n)`` of the states from the init box's centre
+    (an angle's wrapped to ``[-pi, pi)``): ``z = d / scale``; with ``products``, ``b`` = ``z`` with each angle
+    (``angles``: a mask) as ``sin(d)``, ``cos(d)`` instead, followed by ``b_i b_j`` for every ``i <= j``.
+
+    A unicycle's go-to-point steering, a turn rate in proportion to ``dy cos(theta) - dx sin(theta)``,
+    is a weighted sum of such products; so is a pendulum's energy, ``omega^2 / 2 - g / l cos(theta)``.
+
+    >>> one = np.ones(2)
+    >>> state_features(np.array([[0.5, -1.0]]), one, np.array([False, False]), False).tolist()
+    [[0.5, -1.0]]
+    >>> state_features(np.array([[0.5, -1.0]]), one, np.array([False, False]), True).tolist()
+    [[0.5, -1.0, 0.25, -0.5, 1.0]]
+    >>> f = state_features(np.array([[4.0, 0.0]]), np.array([2.0, 1.0]), np.array([False, True]), True)
+    >>> np.round(f, 12).tolist()
+    [[2.0, 0.0, 1.0, 4.0, 0.0, 2.0, 0.0, 0.0, 1.0]]
+    """
+    z = d / scale
+    if not products:
+        return z
+    parts = []
+    for i in range(z.shape[1]):
+        parts += [np.sin(d[:, i : i + 1]), np.cos(d[:, i : i + 1])] if angles[i] else [z[:, i : i + 1]]
+    b = np.concatenate(parts, axis=1)
+    left, right = np.triu_indices(b.shape[1])
+    return np.concatenate([b, b[:, left] * b[:, right]], axis=1)
 
 
 def features(z: np.ndarray, tau: float | np.ndarray, time_gains: bool, harmonics: int = 0) -> np.ndarray:
@@ -156,7 +193,7 @@ def scores(satisfied: np.ndarray, robustness: np.ndarray, violation_time: np.nda
 class _Episode:
     """The plant, its parameters and the normalisation of a spec's episodes."""
 
-    def __init__(self, rs: RewardSystem) -> None:
+    def __init__(self, rs: RewardSystem, scale_floor: float = 0.1) -> None:
         s = rs.spec
         plant = s.plant
         if plant is None or plant.stepped:
@@ -178,18 +215,27 @@ class _Episode:
         hi = np.array([b for _, b in self.init_ranges])
         span = np.array([v.hi - v.lo for v in plant.state], dtype=float)
         self.centre = (lo + hi) / 2
-        self.scale = np.maximum((hi - lo) / 2, SCALE_FLOOR * span / 2)
+        self.scale = np.maximum((hi - lo) / 2, scale_floor * span / 2)
         self.periodic = np.array([v.periodic for v in plant.state])
         box = plant.input_box(self.params)
         self.u_lo = np.asarray(box[0], dtype=float)
         self.u_hi = np.asarray(box[1], dtype=float)
         self.n_inputs = int(self.u_lo.shape[0])
 
-    def normalise(self, x: np.ndarray) -> np.ndarray:
+    def normalise(self, x: np.ndarray, products: bool = False) -> np.ndarray:
+        """The state features of ``x`` ``(B, n)`` (:func:`state_features`)."""
         d = x - self.centre
         if self.periodic.any():
             d[:, self.periodic] = (d[:, self.periodic] + np.pi) % (2 * np.pi) - np.pi
-        return d / self.scale
+        return state_features(d, self.scale, self.periodic, products)
+
+    def n_state_features(self, products: bool) -> int:
+        """How many state features :meth:`normalise` gives."""
+        n = len(self.centre)
+        if not products:
+            return n
+        b = n + int(self.periodic.sum())
+        return b + b * (b + 1) // 2
 
     def inputs(self, a: np.ndarray) -> np.ndarray:
         """``(B, m)`` pre-activations to inputs in their boxes (``(B,)`` for one input)."""
@@ -223,12 +269,12 @@ class SearchRuns:
         if first < 0:
             raise InputError(f"first must be at least 0, got {first}", file="--runs")
         self.rs, self.spec, self.runs, self.seed, self.first = rs, rs.spec, int(runs), int(seed), int(first)
-        self.episode = ep = _Episode(rs)
+        self.episode = ep = _Episode(rs, self.settings.scale_floor)
         self.plant, self.dt, self.n_steps, self.init_ranges = ep.plant, ep.dt, ep.n_steps, ep.init_ranges
         self.params = ep.params
         self.n_inputs = ep.n_inputs
         self.judge = judge
-        n = len(ep.init_ranges)
+        n = ep.n_state_features(self.settings.products)
         self.n_features = ((2 * n + 2) if self.settings.time_gains else (n + 1)) + 2 * self.settings.harmonics
         self.weights: np.ndarray = np.zeros((self.runs, self.n_features, self.n_inputs))
         self.returns = np.zeros((self.runs, 0))
@@ -247,7 +293,7 @@ class SearchRuns:
         states[:, 0] = x
         with np.errstate(all="ignore"):
             for k in range(N):
-                phi = features(ep.normalise(x), k * self.dt / ep.horizon, st.time_gains, st.harmonics)
+                phi = features(ep.normalise(x, st.products), k * self.dt / ep.horizon, st.time_gains, st.harmonics)
                 u = ep.inputs(np.einsum("bf,bfm->bm", phi, weights))
                 self._advance(x, u)
                 states[:, k + 1], actions[:, k] = x, u
@@ -472,7 +518,7 @@ class SearchPolicy(Policy):
         x = np.atleast_2d(np.asarray(x, dtype=float))
         W = s.weights[np.arange(x.shape[0]) % s.runs]
         tau = np.asarray(state, dtype=float)[:, None] * s.dt / s.episode.horizon
-        phi = features(s.episode.normalise(x), tau, s.settings.time_gains, s.settings.harmonics)
+        phi = features(s.episode.normalise(x, s.settings.products), tau, s.settings.time_gains, s.settings.harmonics)
         return s.episode.inputs(np.einsum("bf,bfm->bm", phi, W))
 
     def step(self, state: np.ndarray, x_next: np.ndarray) -> np.ndarray:
