@@ -474,8 +474,8 @@ def write_doc(rows, comparisons, total: float) -> None:
     page = ROOT / "docs" / "results.md"
     old = page.read_text(encoding="utf-8") if page.is_file() else ""
     # the sections other scripts write: docs/make_hyrl_results.py, docs/make_violation_results.py,
-    # docs/make_nested_results.py
-    for name in ("hyrl", "violations", "nested"):
+    # docs/make_nested_results.py, docs/make_default_results.py
+    for name in ("hyrl", "violations", "nested", "defaults"):
         begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
         if begin in old and end in old:
             lines += [old[old.index(begin) : old.index(end) + len(end)], ""]
