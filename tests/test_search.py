@@ -373,3 +373,48 @@ def test_scale_floor_sets_how_far_from_the_init_box_a_feature_stays_near_1(tmp_p
     for bad in ("scale_floor=0", "scale_floor=nan", "scale_floor=-1"):
         r = _cli("train", "--spec", str(spec), "--learner", "search", "--set", bad, "--out", str(tmp_path / "x"))
         assert r.exit_code == 2 and "scale_floor" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+
+
+def test_spec_scale_reaches_the_propositions_boundaries_on_each_variable(tmp_path) -> None:
+    """With ``spec_scale``, a variable's scale is also the farthest of the spec's thresholds on it from
+    the init box's centre: for TWO_INPUTS' goal disc at (1, 0) of radius 0.3, x reaches 1.3 from -1.4
+    (2.7) and y 0.3 from 0 (under the init half-width 0.4, which stays); theta has no threshold."""
+    from mitlc.learn.features import spec_thresholds
+    from mitlc.learn.search import load_search
+
+    marks = spec_thresholds(parse_spec(TWO_INPUTS))
+    assert set(marks) == {"x", "y"}
+    # the grid's flips bracket the disc's edge to within one grid step (4 m / 63 per axis)
+    step = 4.0 / 63
+    assert abs(marks["x"].max() - 1.3) < step and abs(marks["x"].min() - 0.7) < step
+    assert abs(np.abs(marks["y"]).max() - 0.3) < step
+    plain = _runs(TWO_INPUTS, 2, seed=1).episode
+    wide = _runs(TWO_INPUTS, 2, seed=1, spec_scale=True).episode
+    assert wide.scale[0] == pytest.approx(marks["x"].max() + 1.4) and abs(wide.scale[0] - 2.7) < step
+    assert wide.scale[1] == plain.scale[1] == pytest.approx(0.4)  # the disc's 0.3 is inside the init box's 0.4
+    assert wide.scale[2] == plain.scale[2] == pytest.approx(0.5)
+    spec = tmp_path / "two.mitl"
+    spec.write_text(TWO_INPUTS)
+    out = tmp_path / "s"
+    args = ("--learner", "search", "--set", "spec_scale=true", "--runs", "2", "--trials", "2", "--seed", "1")
+    assert _cli("train", "--spec", str(spec), *args, "--out", str(out)).exit_code == 0
+    loaded = load_search(out)
+    assert loaded.settings.spec_scale is True and loaded.episode.scale[0] == wide.scale[0]
+    again = _runs(TWO_INPUTS, 2, seed=1, spec_scale=True)
+    again.train(2)
+    np.testing.assert_array_equal(loaded.weights, again.weights)
+
+
+def test_spec_thresholds_of_one_variable_match_where_its_truth_flips() -> None:
+    from mitlc.learn.features import spec_thresholds
+
+    spec = parse_spec(
+        "plant cartpole\ninit x = 0, xdot = 0, theta in [-0.1, 0.1], thetadot = 0\nprop tipped = abs(theta) > 0.4\n"
+        "prop mark = abs(x - 1.5) < 0.1\nprop c = 1 > 0\nformula G !tipped & F G mark & G c"
+    )
+    marks = spec_thresholds(spec)
+    assert set(marks) == {"theta", "x"}  # the constant proposition reads no variable
+    theta = marks["theta"]
+    # 4096 samples of theta's box [-pi, pi): the two flips within a sample's width of -0.4 and 0.4
+    assert len(theta) == 2 and np.all(np.abs(np.abs(theta) - 0.4) < 2 * np.pi / 4095)
+    assert len(marks["x"]) == 2 and np.all(np.abs(np.sort(marks["x"]) - [1.4, 1.6]) < 5.0 / 4095)

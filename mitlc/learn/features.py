@@ -49,7 +49,16 @@ from mitlc.plants import StateVar
 if TYPE_CHECKING:
     from mitlc.spec.model import Spec
 
-__all__ = ["Axis", "RbfFeatures", "default_rbf", "spec_grid", "GRID_MARGIN", "RBF_PER_VARIABLE", "RBF_BUDGET"]
+__all__ = [
+    "Axis",
+    "RbfFeatures",
+    "default_rbf",
+    "spec_grid",
+    "spec_thresholds",
+    "GRID_MARGIN",
+    "RBF_PER_VARIABLE",
+    "RBF_BUDGET",
+]
 
 RBF_PER_VARIABLE = 10
 """Centres per variable for one or two state variables (Table 4-4: 10 x 10)."""
@@ -273,3 +282,49 @@ def spec_grid(spec: Spec) -> dict[str, tuple[float, float]]:
         if hi - lo > 1e-3 * (ghi - glo):
             out[v.name] = (float(lo), float(hi))
     return out
+
+
+THRESHOLD_POINTS = 4096
+"""Grid points over the variables a proposition reads at which :func:`spec_thresholds` looks for
+where its truth changes (``4096 ** (1 / k)`` per axis for ``k`` variables, at least 2)."""
+
+
+def spec_thresholds(spec: Spec) -> dict[str, np.ndarray]:
+    r"""Per state variable, the values it takes on the boundaries of the spec's propositions: where a
+    proposition's truth changes between neighbours of a grid over the plant's box of the variables it
+    reads (one variable or several: a disc in ``(x, y)`` gives its extent in both). A proposition of
+    no state variable, or of a variable the plant lacks, gives none.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> spec = parse_spec("plant unicycle\ninit x in [-1.6, -1.2], y = 0, theta = 0\n"
+    ...                   "prop goal = (x - 1) * (x - 1) + y * y < 0.09\nformula F G goal")
+    >>> t = spec_thresholds(spec)
+    >>> sorted(t), round(float(t["x"].min()), 1), round(float(t["x"].max()), 1), round(float(abs(t["y"]).max()), 1)
+    (['x', 'y'], 0.7, 1.3, 0.3)
+    """
+    from mitlc.spec.predicates import evaluate, variables
+
+    plant = spec.plant
+    if plant is None:
+        return {}
+    state = {v.name: v for v in plant.state}
+    out: dict[str, list[np.ndarray]] = {}
+    for p in spec.props:
+        names = sorted({v.name for v in variables(p.pred)})
+        if not names or not set(names) <= state.keys():
+            continue
+        per_axis = max(2, int(round(THRESHOLD_POINTS ** (1.0 / len(names)))))
+        axes = [np.linspace(state[n].lo, state[n].hi, per_axis) for n in names]
+        grid = np.meshgrid(*axes, indexing="ij")
+        truth = np.broadcast_to(evaluate(p.pred, dict(zip(names, grid, strict=True))), grid[0].shape)
+        for a in range(len(names)):
+            lo: list[slice] = [slice(None)] * len(names)
+            hi: list[slice] = [slice(None)] * len(names)
+            lo[a], hi[a] = slice(None, -1), slice(1, None)
+            flips = truth[tuple(lo)] != truth[tuple(hi)]
+            if not flips.any():
+                continue
+            for b, name in enumerate(names):  # the flip's place: the midpoint along axis a
+                at = 0.5 * (grid[b][tuple(lo)] + grid[b][tuple(hi)])
+                out.setdefault(name, []).append(at[flips])
+    return {name: np.concatenate(parts) for name, parts in out.items()}

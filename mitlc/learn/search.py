@@ -17,7 +17,9 @@ The policy of a run, for a plant with state ``x`` (``n`` variables) and ``m`` in
 ``scale_floor`` = a tenth of the state's half-range, so a variable pinned by ``init`` is still seen on
 its own scale): a gain of 1 moves an input through most of its box for a state anywhere in the init
 box. ``scale_floor = 1`` scales each variable to its half-range instead (features near 1 wherever the
-state goes); ``products`` makes the state's features quadratic (:func:`state_features`).
+state goes); ``spec_scale`` stretches a variable's scale to the farthest of the spec's thresholds on it
+(:func:`mitlc.learn.features.spec_thresholds`); ``products`` makes the state's features quadratic
+(:func:`state_features`).
 
 ``harmonics = H`` adds ``sin(2 pi k tau)`` and ``cos(2 pi k tau)``, ``k = 1 .. H``, to ``phi``: a
 periodic schedule in time, which a patrol or an oscillation needs and a linear one cannot give.
@@ -102,6 +104,9 @@ class SearchSettings:
     """A state variable's scale is at least this share of its half-range (:class:`_Episode`): 0.1 lets
     a variable ``init`` pins be seen on its own scale; 1 scales every variable to its half-range, so a
     feature stays near 1 however far the state travels from the ``init`` box."""
+    spec_scale: bool = False
+    """Whether a state variable's scale also reaches the spec's thresholds on it (the boundaries of its
+    propositions, :func:`mitlc.learn.features.spec_thresholds`): the farthest from the ``init`` box's centre."""
     products: bool = False
     """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
     cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
@@ -193,7 +198,7 @@ def scores(satisfied: np.ndarray, robustness: np.ndarray, violation_time: np.nda
 class _Episode:
     """The plant, its parameters and the normalisation of a spec's episodes."""
 
-    def __init__(self, rs: RewardSystem, scale_floor: float = 0.1) -> None:
+    def __init__(self, rs: RewardSystem, scale_floor: float = 0.1, spec_scale: bool = False) -> None:
         s = rs.spec
         plant = s.plant
         if plant is None or plant.stepped:
@@ -217,6 +222,16 @@ class _Episode:
         self.centre = (lo + hi) / 2
         self.scale = np.maximum((hi - lo) / 2, scale_floor * span / 2)
         self.periodic = np.array([v.periodic for v in plant.state])
+        if spec_scale:
+            from mitlc.learn.features import spec_thresholds
+
+            marks = spec_thresholds(s)
+            for i, v in enumerate(plant.state):
+                if v.name in marks:
+                    d = marks[v.name] - self.centre[i]
+                    if v.periodic:
+                        d = (d + np.pi) % (2 * np.pi) - np.pi
+                    self.scale[i] = max(self.scale[i], float(np.abs(d).max()))
         box = plant.input_box(self.params)
         self.u_lo = np.asarray(box[0], dtype=float)
         self.u_hi = np.asarray(box[1], dtype=float)
@@ -269,7 +284,7 @@ class SearchRuns:
         if first < 0:
             raise InputError(f"first must be at least 0, got {first}", file="--runs")
         self.rs, self.spec, self.runs, self.seed, self.first = rs, rs.spec, int(runs), int(seed), int(first)
-        self.episode = ep = _Episode(rs, self.settings.scale_floor)
+        self.episode = ep = _Episode(rs, self.settings.scale_floor, self.settings.spec_scale)
         self.plant, self.dt, self.n_steps, self.init_ranges = ep.plant, ep.dt, ep.n_steps, ep.init_ranges
         self.params = ep.params
         self.n_inputs = ep.n_inputs
