@@ -4,21 +4,13 @@ and trials."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from scripts import load_script  # tests/scripts.py: tests/ is on the path, as for strategies and golden
 
 
 def _script():  # type: ignore[no-untyped-def]
-    spec = importlib.util.spec_from_file_location("default_results_script", ROOT / "docs" / "make_default_results.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["default_results_script"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("docs/make_default_results.py", "default_results_script")
 
 
 def test_the_section_is_rendered_from_its_data_at_the_defaults() -> None:

@@ -7,27 +7,17 @@ Exact, but for the seconds a training took (``in 9.8 s``), which depend on the m
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
+from scripts import load_script  # tests/scripts.py: tests/ is on the path, as for strategies and golden
 
 ROOT = Path(__file__).resolve().parent.parent
 HAS_DOT = shutil.which("dot") is not None
 
 
-def _refresh():
-    spec = importlib.util.spec_from_file_location("docs_refresh", ROOT / "docs" / "refresh.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["docs_refresh"] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-refresh = _refresh()
+refresh = load_script("docs/refresh.py", "docs_refresh")
 
 
 def test_every_page_with_commands_is_checked() -> None:

@@ -2,21 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
+
+from scripts import load_script  # tests/scripts.py: tests/ is on the path, as for strategies and golden
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def _script():  # type: ignore[no-untyped-def]
-    spec = importlib.util.spec_from_file_location("suite_script", ROOT / "bench" / "suite.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["suite_script"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("bench/suite.py", "suite_script")
 
 
 def test_page_is_rendered_from_its_data_at_the_defaults() -> None:
