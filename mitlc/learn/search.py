@@ -60,7 +60,7 @@ import numpy as np
 from mitlc.errors import InputError, TrainingError
 from mitlc.learn.policy import Policy
 from mitlc.petri.compile import RewardSystem
-from mitlc.plants.base import make_integrator
+from mitlc.plants.base import make_integrator, wrap_angle
 
 __all__ = [
     "SearchSettings",
@@ -229,9 +229,7 @@ class _Episode:
             for i, v in enumerate(plant.state):
                 if v.name in marks:
                     d = marks[v.name] - self.centre[i]
-                    if v.periodic:
-                        d = (d + np.pi) % (2 * np.pi) - np.pi
-                    self.scale[i] = max(self.scale[i], float(np.abs(d).max()))
+                    self.scale[i] = max(self.scale[i], float(np.abs(wrap_angle(d) if v.periodic else d).max()))
         box = plant.input_box(self.params)
         self.u_lo = np.asarray(box[0], dtype=float)
         self.u_hi = np.asarray(box[1], dtype=float)
@@ -241,7 +239,7 @@ class _Episode:
         """The state features of ``x`` ``(B, n)`` (:func:`state_features`)."""
         d = x - self.centre
         if self.periodic.any():
-            d[:, self.periodic] = (d[:, self.periodic] + np.pi) % (2 * np.pi) - np.pi
+            d[:, self.periodic] = wrap_angle(d[:, self.periodic])
         return state_features(d, self.scale, self.periodic, products)
 
     def n_state_features(self, products: bool) -> int:

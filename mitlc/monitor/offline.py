@@ -687,8 +687,9 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     texts: dict[int, str] = {}  # a part's text by its identity: a few parts blamed over many runs
     for r in np.flatnonzero(~satisfied):
         part = _blame_root(f, ev, int(r), 0)
-        text = texts.get(id(part))
-        failing[r] = text if text is not None else texts.setdefault(id(part), str(part))
+        if id(part) not in texts:
+            texts[id(part)] = str(part)
+        failing[r] = texts[id(part)]
     return MonitorResult(satisfied, robustness, violation, tuple(failing))
 
 
