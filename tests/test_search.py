@@ -118,7 +118,7 @@ def test_a_plant_with_two_inputs_gets_one_gain_column_per_input_inside_its_box()
 
 
 def test_the_features_are_centred_on_the_init_box_and_wrap_an_angle() -> None:
-    sr = _runs("plant pendulum\ninit q in [2.4, pi], qdot = 0\nhorizon 2\nprop up = abs(q) < 0.3\nformula F G up\n", 1)
+    sr = _runs("plant pendulum\ninit q in [2.4, pi], qdot = 0\nhorizon 2\nprop up = abs(q) < 0.3\nformula F G up\n", 1, spec_scale=False)
     ep = sr.episode
     centre = (2.4 + np.pi) / 2
     z = ep.normalise(np.array([[centre, 0.0], [-np.pi + 0.1, 1.0]]))
@@ -353,11 +353,11 @@ def test_product_features_make_go_to_point_steering_one_weighted_sum() -> None:
 def test_scale_floor_sets_how_far_from_the_init_box_a_feature_stays_near_1(tmp_path) -> None:
     from mitlc.learn.search import load_search
 
-    sr = _runs(TWO_INPUTS, 2, seed=1, scale_floor=1.0)
+    sr = _runs(TWO_INPUTS, 2, seed=1, scale_floor=1.0, spec_scale=False)
     z = sr.episode.normalise(np.array([[2.0, -2.0, 0.5]]))
     # x's and y's scale is their half-range, 2 m (the init box is narrower); theta's is pi
     np.testing.assert_allclose(z[0], [(2.0 + 1.4) / 2.0, -2.0 / 2.0, 0.5 / np.pi], rtol=1e-12)
-    narrow = _runs(TWO_INPUTS, 2, seed=1).episode.normalise(np.array([[2.0, -2.0, 0.5]]))
+    narrow = _runs(TWO_INPUTS, 2, seed=1, spec_scale=False).episode.normalise(np.array([[2.0, -2.0, 0.5]]))
     np.testing.assert_allclose(narrow[0], [(2.0 + 1.4) / 0.2, -2.0 / 0.4, 0.5 / 0.5], rtol=1e-12)
     spec = tmp_path / "two.mitl"
     spec.write_text(TWO_INPUTS)
@@ -388,7 +388,7 @@ def test_spec_scale_reaches_the_propositions_boundaries_on_each_variable(tmp_pat
     step = 4.0 / 63
     assert abs(marks["x"].max() - 1.3) < step and abs(marks["x"].min() - 0.7) < step
     assert abs(np.abs(marks["y"]).max() - 0.3) < step
-    plain = _runs(TWO_INPUTS, 2, seed=1).episode
+    plain = _runs(TWO_INPUTS, 2, seed=1, spec_scale=False).episode
     wide = _runs(TWO_INPUTS, 2, seed=1, spec_scale=True).episode
     assert wide.scale[0] == pytest.approx(marks["x"].max() + 1.4) and abs(wide.scale[0] - 2.7) < step
     assert wide.scale[1] == plain.scale[1] == pytest.approx(0.4)  # the disc's 0.3 is inside the init box's 0.4
@@ -396,13 +396,19 @@ def test_spec_scale_reaches_the_propositions_boundaries_on_each_variable(tmp_pat
     spec = tmp_path / "two.mitl"
     spec.write_text(TWO_INPUTS)
     out = tmp_path / "s"
-    args = ("--learner", "search", "--set", "spec_scale=true", "--runs", "2", "--trials", "2", "--seed", "1")
+    args = ("--learner", "search", "--runs", "2", "--trials", "2", "--seed", "1")
     assert _cli("train", "--spec", str(spec), *args, "--out", str(out)).exit_code == 0
-    loaded = load_search(out)
+    loaded = load_search(out)  # on by default
     assert loaded.settings.spec_scale is True and loaded.episode.scale[0] == wide.scale[0]
     again = _runs(TWO_INPUTS, 2, seed=1, spec_scale=True)
     again.train(2)
     np.testing.assert_array_equal(loaded.weights, again.weights)
+    off = tmp_path / "off"
+    assert _cli("train", "--spec", str(spec), *args, "--set", "spec_scale=false", "--out", str(off)).exit_code == 0
+    assert load_search(off).episode.scale[0] == plain.scale[0]
+    # a search.npz written before the setting existed was trained without it, and reloads so
+    assert SearchSettings.from_dict({"harmonics": 2}).spec_scale is False
+    assert SearchSettings.from_dict(loaded.settings.to_dict()) == loaded.settings
 
 
 def test_spec_thresholds_of_one_variable_match_where_its_truth_flips() -> None:

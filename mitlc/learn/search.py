@@ -104,9 +104,12 @@ class SearchSettings:
     """A state variable's scale is at least this share of its half-range (:class:`_Episode`): 0.1 lets
     a variable ``init`` pins be seen on its own scale; 1 scales every variable to its half-range, so a
     feature stays near 1 however far the state travels from the ``init`` box."""
-    spec_scale: bool = False
+    spec_scale: bool = True
     """Whether a state variable's scale also reaches the spec's thresholds on it (the boundaries of its
-    propositions, :func:`mitlc.learn.features.spec_thresholds`): the farthest from the ``init`` box's centre."""
+    propositions, :func:`mitlc.learn.features.spec_thresholds`): the farthest from the ``init`` box's centre.
+    On by default since the race with it learnt 10 of the tuning half's 13 plant tasks to 0.9 against 8
+    (bench/suite/tuning/14-search-spec-scale.json, 15-race-spec-scale.json); a ``search.npz`` written
+    before the setting existed reloads with it off, as it was trained."""
     products: bool = False
     """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
     cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
@@ -130,6 +133,7 @@ class SearchSettings:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> SearchSettings:
         names = {f.name for f in fields(cls)}
+        d = {"spec_scale": False, **d}  # a file from before the setting was trained without it
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
