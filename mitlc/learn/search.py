@@ -17,8 +17,8 @@ The policy of a run, for a plant with state ``x`` (``n`` variables) and ``m`` in
 ``scale_floor`` = a tenth of the state's half-range, so a variable pinned by ``init`` is still seen on
 its own scale): a gain of 1 moves an input through most of its box for a state anywhere in the init
 box. ``scale_floor = 1`` scales each variable to its half-range instead (features near 1 wherever the
-state goes); ``spec_scale`` stretches a variable's scale to the farthest of the spec's thresholds on it
-(:func:`mitlc.learn.features.spec_thresholds`); ``products`` makes the state's features quadratic
+state goes); ``spec_scale`` (on by default) stretches a variable's scale to the farthest of the spec's
+thresholds on it (:func:`mitlc.learn.features.spec_thresholds`); ``products`` makes the state's features quadratic
 (:func:`state_features`).
 
 ``harmonics = H`` adds ``sin(2 pi k tau)`` and ``cos(2 pi k tau)``, ``k = 1 .. H``, to ``phi``: a

@@ -78,7 +78,8 @@ SEARCH_DESIGNS: tuple[tuple[str, dict[str, Any]], ...] = (
 """The policy search's designs in the race: name and the :class:`mitlc.learn.search.SearchSettings`
 each changes. Two periodic terms in time learn the cart's patrol (0.33 -> 0.90 on the tuning half,
 seed 0) and cost the dock (0.97 -> 0.67); four cost more than they gain
-(bench/suite/tuning/10-search-harmonics-2.json, 11-search-harmonics-4.json): both raced."""
+(bench/suite/tuning/10-search-harmonics-2.json, 11-search-harmonics-4.json): both raced, each with the
+search's defaults otherwise (its scale reaching the spec's thresholds since record 15)."""
 
 SEARCH_SHARE = 0.2
 """The search's generations per SACPN trial: a training of the default 500 trials races and trains
