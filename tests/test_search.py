@@ -118,7 +118,8 @@ def test_a_plant_with_two_inputs_gets_one_gain_column_per_input_inside_its_box()
 
 
 def test_the_features_are_centred_on_the_init_box_and_wrap_an_angle() -> None:
-    sr = _runs("plant pendulum\ninit q in [2.4, pi], qdot = 0\nhorizon 2\nprop up = abs(q) < 0.3\nformula F G up\n", 1, spec_scale=False)
+    text = "plant pendulum\ninit q in [2.4, pi], qdot = 0\nhorizon 2\nprop up = abs(q) < 0.3\nformula F G up\n"
+    sr = _runs(text, 1, spec_scale=False)
     ep = sr.episode
     centre = (2.4 + np.pi) / 2
     z = ep.normalise(np.array([[centre, 0.0], [-np.pi + 0.1, 1.0]]))
