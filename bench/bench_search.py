@@ -3,11 +3,14 @@
 A generation of :class:`mitlc.learn.search.SearchRuns` with R runs is: every run's CMA-ES asks for
 ``popsize`` candidates, ``R * popsize * starts`` rows are rolled out on the plant in numpy
 (``SearchRuns._roll``), the monitor judges every rollout (``judge``: satisfaction, robustness and the
-time of the first violation), and every run's CMA-ES is told the fitness. This bench times the
+time of the first violation, no failing part named: ``monitor(..., blame=False)``), and every
+run's CMA-ES is told the fitness. This bench times the
 three parts separately on one spec, in one process and on one core (BLAS threads pinned to 1),
 each the median of ``--repeat`` calls on the same candidates and starts, and prints each part's
 share of their sum, the seconds per generation and what ``--generations`` of them cost (the
-default trial count of ``mitlc train --learner search``; a race of designs before it adds more).
+default trial count of ``mitlc train --learner search``; a race of designs before it adds more),
+then the baseline: the same judging with blame (each violated run's failing part named, as the
+search judged before), and the ratios.
 The issue's target for a suite task's training is 60 s on 2 cores: the shares say which part must
 give way first.
 
@@ -40,13 +43,14 @@ from mitlc.petri.compile import CompileOptions, compile_spec  # noqa: E402
 from mitlc.spec.parse import load_spec  # noqa: E402
 
 
-def parts(spec_path: Path, runs: int, repeat: int, seed: int = 0) -> dict[str, float]:
-    """Median seconds of one generation's ask and tell, rollout and judging on ``spec_path``."""
+def parts(spec_path: Path, runs: int, repeat: int, seed: int = 0) -> tuple[dict[str, float], float]:
+    """Median seconds of one generation's ask and tell, rollout and judging on ``spec_path`` (as
+    ``mitlc train``'s search judges: no blame), and of the judging with blame (the baseline)."""
     import cma
 
     spec = load_spec(spec_path)
     rs = compile_spec(spec, CompileOptions())
-    agent = SearchRuns(rs, runs, seed, SearchSettings(), lambda s, dt: monitor(spec, s, dt, spec.monitor_formula))
+    agent = SearchRuns(rs, runs, seed, SearchSettings())
     st = agent.settings
     P, S, R, f, m = st.popsize, st.starts, runs, agent.n_features, agent.n_inputs
     rng = np.random.default_rng(seed)
@@ -68,8 +72,10 @@ def parts(spec_path: Path, runs: int, repeat: int, seed: int = 0) -> dict[str, f
     return {
         "ask and tell (CMA-ES, per run)": timed(ask_tell, repeat),
         f"rollout ({R * P * S} rows x {agent.n_steps} steps, numpy)": timed(lambda: agent._roll(W, starts), repeat),
-        "judge (the monitor on every rollout)": timed(lambda: agent.judge(states, agent.dt), repeat),  # type: ignore[misc]
-    }
+        "judge (the monitor on every rollout, no blame)": timed(
+            lambda: monitor(spec, states, agent.dt, spec.monitor_formula, blame=False), repeat
+        ),
+    }, timed(lambda: monitor(spec, states, agent.dt, spec.monitor_formula), repeat)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,12 +85,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=3, help="calls per part; the median is kept (default 3)")
     ap.add_argument("--generations", type=int, default=default_generations(0), help="generations to cost")
     a = ap.parse_args(argv)
-    found = parts(a.spec, a.runs, a.repeat)
+    found, blamed = parts(a.spec, a.runs, a.repeat)
     total = sum(found.values())
+    judged = list(found.values())[-1]
     print(f"policy search, one generation of {a.runs} runs on {a.spec.name}:")
     for name, sec in found.items():
         print(f"  {name:<48} {sec:8.3f} s  {sec / total:6.1%}")
     print(f"  {'sum':<48} {total:8.3f} s")
+    print(
+        f"judging with blame (the failing part named per violated run, as before): {blamed:.3f} s, "
+        f"{blamed / judged:.2f}x the judging without; a generation {(total - judged + blamed) / total:.2f}x"
+    )
     print(f"{a.generations} generations: {a.generations * total:.1f} s (the issue's target for a whole training: 60 s)")
     return 0
 

@@ -635,6 +635,21 @@ def test_batch_equals_single_runs(f: A.Formula, data) -> None:
         )
 
 
+@settings(max_examples=100, deadline=None)
+@given(f=SMALL, data=st.data())
+def test_no_blame_gives_the_same_numbers_and_no_failing_part(f: A.Formula, data) -> None:
+    """``blame=False`` (the policy search's judge) skips naming the failing part and nothing else."""
+    runs = [data.draw(traces(min_len=7, max_len=7)) for _ in range(4)]
+    batch = {k: np.array([r[k] for r in runs]) for k in ("x", "y", "z")}
+    full = monitor(ABC, batch, 0.5, f)
+    bare = monitor(ABC, batch, 0.5, f, blame=False)
+    assert bare.satisfied.tolist() == full.satisfied.tolist()
+    assert bare.robustness.tolist() == full.robustness.tolist()
+    np.testing.assert_array_equal(bare.violation_time, full.violation_time)  # nan where satisfied, in both
+    assert bare.failing == (None,) * 4
+    assert [t is None for t in full.failing] == full.satisfied.tolist()
+
+
 @settings(max_examples=40, deadline=None)
 @given(f=formulas(atoms=("a", "b"), interval=grid_intervals(0.25, 40), max_leaves=4), seed=st.integers(0, 2**32 - 1))
 def test_long_traces_against_reference(f: A.Formula, seed: int) -> None:

@@ -610,7 +610,7 @@ def _monitor_judge(spec):
     def judge(states: np.ndarray, dt: float):
         from mitlc.monitor.offline import monitor
 
-        return monitor(spec, states, dt, spec.monitor_formula)
+        return monitor(spec, states, dt, spec.monitor_formula, blame=False)  # the search reads no failing part
 
     return judge
 

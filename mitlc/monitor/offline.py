@@ -91,7 +91,8 @@ class MonitorResult:
     violation_time: np.ndarray
     """``(R,)`` float: first time (s) at which the verdict became certain-false, nan where satisfied."""
     failing: tuple[str | None, ...]
-    """Per run: text of the smallest subformula responsible for the violation, None if satisfied."""
+    """Per run: text of the smallest subformula responsible for the violation, None if satisfied
+    (and None for every run when :func:`monitor` was asked for no blame)."""
 
 
 # ----------------------------------------------------------------- predicates
@@ -660,14 +661,19 @@ def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> t
 # ----------------------------------------------------------------- API
 
 
-def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> MonitorResult:
+def monitor(
+    spec: Spec, states: Any, dt: float, formula: A.Formula | None = None, blame: bool = True
+) -> MonitorResult:
     """Judge a batch of sampled traces by ``formula`` (default ``spec.monitor_formula``).
 
     ``states`` is an array ``(R, N+1, n)`` (or one trace ``(N+1, n)``) with
     columns in :func:`state_columns` order, or a mapping from state variable
     name to ``(R, N+1)`` (or ``(N+1,)``) arrays. Sample ``k`` is at ``k * dt``
     seconds. Periodic state variables of the spec's plant are wrapped to
-    ``[-pi, pi)`` first.
+    ``[-pi, pi)`` first. ``blame=False`` leaves ``failing`` None for every run: naming the
+    failing part walks the formula once per violated run in Python, about half of the judging
+    of a policy search's rollouts (``bench/bench_search.py``), which needs only the verdict,
+    the robustness and the violation time (the same numbers either way).
 
     >>> from mitlc.spec.parse import parse_spec
     >>> spec = parse_spec("prop up = abs(q) < 0.3\\nformula G[0,1] !up")
@@ -685,7 +691,7 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     if not satisfied.all():
         violation = np.where(satisfied, np.nan, ev.settle(f)[:, 0] * ev.dt)
     texts: dict[int, str] = {}  # a part's text by its identity: a few parts blamed over many runs
-    for r in np.flatnonzero(~satisfied):
+    for r in np.flatnonzero(~satisfied) if blame else ():
         part = _blame_root(f, ev, int(r), 0)
         if id(part) not in texts:
             texts[id(part)] = str(part)
