@@ -661,9 +661,7 @@ def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> t
 # ----------------------------------------------------------------- API
 
 
-def monitor(
-    spec: Spec, states: Any, dt: float, formula: A.Formula | None = None, blame: bool = True
-) -> MonitorResult:
+def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None, blame: bool = True) -> MonitorResult:
     """Judge a batch of sampled traces by ``formula`` (default ``spec.monitor_formula``).
 
     ``states`` is an array ``(R, N+1, n)`` (or one trace ``(N+1, n)``) with
