@@ -33,9 +33,8 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
 
-from _timing import timed  # noqa: E402
+from _timing import timed  # noqa: E402  (bench/ is on sys.path when a bench runs)
 
 from mitlc.learn.search import SearchRuns, SearchSettings, default_generations  # noqa: E402
 from mitlc.monitor.offline import monitor  # noqa: E402

@@ -620,11 +620,16 @@ def test_violation_is_certain_after_its_time(f: A.Formula, sig: dict[str, list[f
         assert not monitor(ABC, other, dt, f).satisfied[0]
 
 
+def _batch(data, count: int, length: int) -> tuple[list[dict[str, list[float]]], dict[str, np.ndarray]]:
+    """``count`` drawn traces of ``length`` samples, and the same as one batch ``(count, length)`` per variable."""
+    runs = [data.draw(traces(min_len=length, max_len=length)) for _ in range(count)]
+    return runs, {k: np.array([r[k] for r in runs]) for k in ("x", "y", "z")}
+
+
 @settings(max_examples=100, deadline=None)
 @given(f=SMALL, data=st.data())
 def test_batch_equals_single_runs(f: A.Formula, data) -> None:
-    runs = [data.draw(traces(min_len=6, max_len=6)) for _ in range(3)]
-    batch = {k: np.array([r[k] for r in runs]) for k in ("x", "y", "z")}
+    runs, batch = _batch(data, 3, 6)
     res = monitor(ABC, batch, 0.5, f)
     for i, r in enumerate(runs):
         one = monitor(ABC, {k: np.array(v) for k, v in r.items()}, 0.5, f)
@@ -639,8 +644,7 @@ def test_batch_equals_single_runs(f: A.Formula, data) -> None:
 @given(f=SMALL, data=st.data())
 def test_no_blame_gives_the_same_numbers_and_no_failing_part(f: A.Formula, data) -> None:
     """``blame=False`` (the policy search's judge) skips naming the failing part and nothing else."""
-    runs = [data.draw(traces(min_len=7, max_len=7)) for _ in range(4)]
-    batch = {k: np.array([r[k] for r in runs]) for k in ("x", "y", "z")}
+    _, batch = _batch(data, 4, 7)
     full = monitor(ABC, batch, 0.5, f)
     bare = monitor(ABC, batch, 0.5, f, blame=False)
     assert bare.satisfied.tolist() == full.satisfied.tolist()

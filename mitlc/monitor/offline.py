@@ -669,9 +669,9 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     name to ``(R, N+1)`` (or ``(N+1,)``) arrays. Sample ``k`` is at ``k * dt``
     seconds. Periodic state variables of the spec's plant are wrapped to
     ``[-pi, pi)`` first. ``blame=False`` leaves ``failing`` None for every run: naming the
-    failing part walks the formula once per violated run in Python, about half of the judging
-    of a policy search's rollouts (``bench/bench_search.py``), which needs only the verdict,
-    the robustness and the violation time (the same numbers either way).
+    failing part walks the formula once per violated run in Python (a sixth of the judging of a
+    cart-pole search's first candidates, ``bench/bench_search.py``); a policy search needs only
+    the verdict, the robustness and the violation time (the same numbers either way).
 
     >>> from mitlc.spec.parse import parse_spec
     >>> spec = parse_spec("prop up = abs(q) < 0.3\\nformula G[0,1] !up")
