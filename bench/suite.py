@@ -441,13 +441,18 @@ def _misses(data: dict, names: list[str]) -> list[str]:
                 counts[part] = counts.get(part, 0) + k
         failed = sum(counts.values())
         parts = ", ".join(f"`{p}` {k}" for p, k in sorted(counts.items(), key=lambda kv: -kv[1])[:3])
-        race = " / ".join(" ".join(f"{e['success']:.2f}" for e in r["race"]["designs"]) for r in recs if r.get("race"))
-        out.append(
-            f"- `{n}`: {failed} failed runs over {len(recs)} seeds broke {parts or 'nothing the monitor names'}; "
-            f"race success per design by seed ({', '.join(e['name'] for e in recs[0]['race']['designs'])}): {race}"
-            if recs and recs[0].get("race")
-            else f"- `{n}`: {failed} failed runs over {len(recs)} seeds broke {parts or 'nothing the monitor names'}"
-        )
+        races = [r["race"]["designs"] for r in recs if r.get("race")]
+        if races and all([e["name"] for e in d] == [e["name"] for e in races[0]] for d in races):
+            names = ", ".join(e["name"] for e in races[0])
+            race = " / ".join(" ".join(f"{e['success']:.2f}" for e in d) for d in races)
+            race = f"; race success per design by seed ({names}): {race}"
+        elif races:  # a seed's race stopped at a design that satisfied on every race run
+            each = (", ".join(f"{e['name']} {e['success']:.2f}" for e in d) for d in races)
+            race = "; race success by seed: " + " / ".join(each)
+        else:
+            race = ""
+        broke = parts or "nothing the monitor names"
+        out.append(f"- `{n}`: {failed} failed runs over {len(recs)} seeds broke {broke}{race}")
     if out:
         out = ["", "Where it misses (under 0.9), measured:", "", *out]
     return out
