@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mitlc.learn.sacpn import SacpnSettings
-from mitlc.sweep.race import DESIGNS, SEARCH_DESIGNS, race
+from mitlc.sweep.race import DESIGNS, EARLY_WIN_RUNS, SEARCH_DESIGNS, race
 
 
 @dataclass
@@ -26,14 +26,19 @@ class Stand:
         self.trained = trials
 
 
-def _race(success: dict[str, tuple[bool, ...]], returns: dict[str, float] | None = None, searching: bool = True):
+def _race(
+    success: dict[str, tuple[bool, ...]],
+    returns: dict[str, float] | None = None,
+    searching: bool = True,
+    runs: int = 30,
+):
     returns = returns or {}
     made: list[Stand] = []
     sacpn_names = {tuple(sorted(c.items())): n for n, c in DESIGNS}
     search_names = {tuple(sorted(c.items())): n for n, c in SEARCH_DESIGNS}
 
     def stand(name: str, runs: int) -> Stand:
-        ok = success.get(name, (False,) * runs)
+        ok = success.get(name, (False,) * runs)[:runs]
         assert len(ok) == runs
         made.append(Stand(name, ok, returns.get(name, 0.0)))
         return made[-1]
@@ -50,7 +55,7 @@ def _race(success: dict[str, tuple[bool, ...]], returns: dict[str, float] | None
     def judge(agent: Stand) -> tuple[np.ndarray, np.ndarray]:
         return np.array(agent.ok), np.full(len(agent.ok), agent.ret)
 
-    result = race(build, judge, SacpnSettings(), 30, 500, 0, search=search if searching else None, generations=100)
+    result = race(build, judge, SacpnSettings(), runs, 500, 0, search=search if searching else None, generations=100)
     return result, [s.name for s in made]
 
 
@@ -80,3 +85,15 @@ def test_a_sacpn_design_that_satisfies_every_run_stops_the_race(k: int) -> None:
     result, raced = _race({name: (True,) * 8}, searching=False)
     assert raced == [n for n, _ in DESIGNS[: k + 1]] and result.winner == name
     assert result.skipped == len(DESIGNS) - k - 1 and result.generations == 0
+
+
+@pytest.mark.parametrize("runs", [8, 10, 28])
+def test_with_fewer_race_runs_every_design_races(runs: int) -> None:
+    """A training of under 29 runs races on fewer than EARLY_WIN_RUNS: a clean sweep there wins no early
+    race, and the tie between two clean sweeps goes to the higher greedy return."""
+    r = -(-runs // 4)
+    assert r < EARLY_WIN_RUNS
+    first, last = SEARCH_DESIGNS[0][0], DESIGNS[-1][0]
+    result, raced = _race({first: (True,) * 8, last: (True,) * 8}, returns={last: 5.0}, runs=runs)
+    assert raced == [n for n, _ in SEARCH_DESIGNS] + [n for n, _ in DESIGNS]
+    assert (result.runs, result.winner, result.skipped) == (r, last, 0)
