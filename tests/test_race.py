@@ -97,3 +97,14 @@ def test_with_fewer_race_runs_every_design_races(runs: int) -> None:
     result, raced = _race({first: (True,) * 8, last: (True,) * 8}, returns={last: 5.0}, runs=runs)
     assert raced == [n for n, _ in SEARCH_DESIGNS] + [n for n, _ in DESIGNS]
     assert (result.runs, result.winner, result.skipped) == (r, last, 0)
+
+
+def test_an_exact_tie_goes_to_sacpns_first_design_then_the_searches() -> None:
+    """With every design at the same success and return (a short training where none learns), SACPN's
+    first design wins, as when the searches raced after SACPN's designs."""
+    result, raced = _race({}, runs=8)
+    assert len(raced) == len(SEARCH_DESIGNS) + len(DESIGNS) and result.winner == DESIGNS[0][0]
+    result, _ = _race({}, runs=8, returns={SEARCH_DESIGNS[2][0]: 1.0, DESIGNS[4][0]: 1.0})
+    assert result.winner == DESIGNS[4][0]
+    result, _ = _race({}, runs=8, returns={SEARCH_DESIGNS[2][0]: 1.0, SEARCH_DESIGNS[1][0]: 1.0})
+    assert result.winner == SEARCH_DESIGNS[1][0]

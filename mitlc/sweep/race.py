@@ -237,7 +237,10 @@ def race(
         entries.append(_run(agent, name, t, judge))
         if r >= EARLY_WIN_RUNS and entries[-1].success >= 1.0:
             break
-    best = max(range(len(entries)), key=lambda i: (entries[i].success, entries[i].mean_return, -i))
+    # an exact tie goes to SACPN's designs in their order, then the searches' (the order they raced in
+    # before the searches went first: a tie is decided as it was)
+    tied = [len(todo) + j for j in range(len(searches))] + list(range(len(entries) - len(searches)))
+    best = max(range(len(entries)), key=lambda i: (entries[i].success, entries[i].mean_return, -tied[i]))
     skipped = n - len(entries)
     g = generations if search else 0
     if best < len(searches):  # a search won
