@@ -220,22 +220,27 @@ def race(
         return None
     entries: list[Entry] = []
     searched: list[Any] = []
+
     # the searches first (they won 38 of the tuning half's 39 trainings on plants they can drive,
     # record 18), then SACPN's designs; with EARLY_WIN_RUNS race runs, the first design whose every
     # race run satisfies the spec wins and the rest are not raced (they could at best tie it)
+    def won_early() -> bool:  # an early winner is the only entry at 1.0: the choice below picks it
+        return r >= EARLY_WIN_RUNS and entries[-1].success >= 1.0
+
     for j, (name, changes) in enumerate(searches):
         searched.append(search(r, changes))  # type: ignore[misc]
         if progress is not None:
             progress(j, n, f"{name} ({r} runs x {generations} generations)")
         entries.append(_run(searched[-1], name, generations, judge))
-        if r >= EARLY_WIN_RUNS and entries[-1].success >= 1.0:
-            return Race(name, settings, tuple(entries), r, t, generations, searched[-1], skipped=n - len(entries))
-    for i, (name, changes) in enumerate(todo):
+        if won_early():
+            break
+    early = bool(entries) and won_early()  # a search won: SACPN's designs are not raced
+    for i, (name, changes) in enumerate(() if early else todo):
         agent = build(replace(settings, **changes), r, race_seed(seed, i))  # a plant it cannot drive fails here
         if progress is not None:  # design i of n starts
             progress(len(searches) + i, n, f"{name} ({r} runs x {t} trials)")
         entries.append(_run(agent, name, t, judge))
-        if r >= EARLY_WIN_RUNS and entries[-1].success >= 1.0:
+        if won_early():
             break
     # an exact tie goes to SACPN's designs in their order, then the searches' (the order they raced in
     # before the searches went first: a tie is decided as it was)
