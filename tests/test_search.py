@@ -318,6 +318,59 @@ def test_harmonics_add_periodic_terms_in_time_that_a_folder_keeps(tmp_path) -> N
     assert r.exit_code == 2 and "harmonics" in r.output and len(r.output.strip().splitlines()) == 1, r.output
 
 
+ALTERNATE = """plant pendulum(u_max = 10)
+init q in [-0.3, 0.3], qdot = 0
+horizon 5
+prop left   = abs(q + pi/2) < 0.3
+prop right  = abs(q - pi/2) < 0.3
+prop bottom = abs(q) > 2.5
+formula 5 * G[0,3.5] F[0,1.5] left & 5 * G[0,3.5] F[0,1.5] right & 10 * G !bottom
+"""
+
+
+def test_the_harmonics_period_is_the_deadline_a_g_repeats_and_a_patrol_learns_on_it(tmp_path) -> None:
+    from mitlc.learn.search import load_search, recurrence_period
+    from mitlc.spec.parse import parse_formula
+
+    def period(text: str) -> float | None:
+        return recurrence_period(parse_formula(text))
+
+    assert period("G[0,3.5] F[0,1.5] a & G[0,3.5] F[0,1.5] b & G !c") == 1.5
+    assert period("G[0,8] (a -> F[0,3.5] b) & G[0,7] F[0,5] a") == 3.5  # a bounded response repeats its deadline
+    assert period("G (a U[0,2] b) & F[0,1] c") == 2.0  # an until's deadline too; the F outside every G does not
+    assert period("F[0,4] G a & G F b & F[1,2] c") is None  # nothing repeats a finite deadline
+    assert period("G !(F[0,0.5] a)") == 0.5  # under a negation as well: a deadline the G repeats
+    # the sine of the one harmonic, alone, drives the input: with the spec's period 1.5 s, the horizon's
+    # (5.01 s: 167 steps of 0.03 s), or 2 s
+    for chosen, seconds in ((None, 1.5), (0.0, 5.01), (2.0, 2.0)):
+        sr = _runs(ALTERNATE, 1, harmonics=1, period=chosen)
+        sr.weights[:] = 0.0
+        sr.weights[0, sr.n_features - 2, 0] = 3.0
+        ro = sr.rollout(sr.evaluation_states())
+        lo, hi = sr.episode.u_lo[0], sr.episode.u_hi[0]
+        t = np.arange(sr.n_steps) * sr.dt
+        want = lo + (np.tanh(3.0 * np.sin(2 * np.pi * t / seconds)) + 1) / 2 * (hi - lo)
+        np.testing.assert_allclose(ro.actions[0], want, rtol=0, atol=1e-9)
+    # swinging left and right every 1.5 s: a schedule on the spec's period learns it, one on the horizon's does not
+    learnt = {}
+    for chosen in (None, 0.0):
+        sr = _runs(ALTERNATE, 4, seed=0, harmonics=2, period=chosen)
+        sr.train(25)
+        learnt[chosen] = int(_judge(sr, sr.evaluation_states()).sum())
+    assert learnt[None] >= 3 and learnt[0.0] == 0, learnt
+    # a search.npz from before the setting was trained on the horizon's period, and reloads so
+    assert SearchSettings.from_dict({"harmonics": 2}).period == 0.0
+    assert SearchSettings().period is None
+    spec = tmp_path / "alt.mitl"
+    spec.write_text(ALTERNATE)
+    out = tmp_path / "p"
+    args = ("--learner", "search", "--set", "harmonics=1", "--set", "period=2", "--runs", "1", "--trials", "2")
+    assert _cli("train", "--spec", str(spec), *args, "--out", str(out)).exit_code == 0
+    assert load_search(out).settings.period == 2.0 and load_search(out).cycles == pytest.approx(5.01 / 2)
+    r = _cli("train", "--spec", str(spec), "--learner", "search", "--set", "period=-1", "--out", str(tmp_path / "x"))
+    assert r.exit_code == 2 and "period" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+
+
 def test_product_features_make_go_to_point_steering_one_weighted_sum() -> None:
     """With ``products``, ``dy cos(theta) - dx sin(theta)`` (the turn towards a point) and
     ``dx cos(theta) + dy sin(theta)`` (the speed towards it) are sums of the features: gains written

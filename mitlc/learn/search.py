@@ -21,8 +21,11 @@ state goes); ``spec_scale`` (on by default) stretches a variable's scale to the 
 thresholds on it (:func:`mitlc.learn.features.spec_thresholds`); ``products`` makes the state's features quadratic
 (:func:`state_features`).
 
-``harmonics = H`` adds ``sin(2 pi k tau)`` and ``cos(2 pi k tau)``, ``k = 1 .. H``, to ``phi``: a
-periodic schedule in time, which a patrol or an oscillation needs and a linear one cannot give.
+``harmonics = H`` adds ``sin(2 pi k t / P)`` and ``cos(2 pi k t / P)``, ``k = 1 .. H``, to ``phi``: a
+periodic schedule in time, which a patrol or an oscillation needs and a linear one cannot give. The
+period ``P`` is the spec's when it has one: the smallest deadline a ``G`` repeats
+(:func:`recurrence_period`: 1.5 s for ``G[0,3.5] F[0,1.5] left``, which asks for a visit every 1.5 s),
+else the horizon (``P = T``: ``sin(2 pi k tau)``); ``period`` sets it in seconds.
 
 Each run is an independent CMA-ES (Hansen's ``cma`` package: step-size and covariance adaptation
 that a hand-written evolution strategy would only approximate) over the ``(2n + 2 + 2H) m`` entries of
@@ -110,6 +113,9 @@ class SearchSettings:
     On by default since the race with it learnt 10 of the tuning half's 13 plant tasks to 0.9 against 8
     (bench/suite/tuning/14-search-spec-scale.json, 15-race-spec-scale.json); a ``search.npz`` written
     before the setting existed reloads with it off, as it was trained."""
+    period: float | None = None
+    """The harmonics' base period in seconds, ``sin(2 pi k t / period)``: None takes the spec's
+    (:func:`recurrence_period`, the smallest deadline a ``G`` repeats) or else the horizon; 0 the horizon."""
     products: bool = False
     """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
     cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
@@ -124,6 +130,8 @@ class SearchSettings:
             raise InputError(f"starts must be at least 1, got {self.starts}", file="--set")
         if not (np.isfinite(self.sigma0) and self.sigma0 > 0):
             raise InputError(f"sigma0 must be a positive number, got {self.sigma0}", file="--set")
+        if self.period is not None and not (np.isfinite(self.period) and self.period >= 0):
+            raise InputError(f"period must be a number of seconds >= 0, got {self.period}", file="--set")
         if not (np.isfinite(self.scale_floor) and self.scale_floor > 0):
             raise InputError(f"scale_floor must be a positive number, got {self.scale_floor}", file="--set")
 
@@ -133,7 +141,7 @@ class SearchSettings:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> SearchSettings:
         names = {f.name for f in fields(cls)}
-        d = {"spec_scale": False, **d}  # a file from before the setting was trained without it
+        d = {"spec_scale": False, "period": 0.0, **d}  # a file from before a setting was trained without it
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
@@ -165,10 +173,12 @@ def state_features(d: np.ndarray, scale: np.ndarray, angles: np.ndarray, product
     return np.concatenate([b, b[:, left] * b[:, right]], axis=1)
 
 
-def features(z: np.ndarray, tau: float | np.ndarray, time_gains: bool, harmonics: int = 0) -> np.ndarray:
+def features(
+    z: np.ndarray, tau: float | np.ndarray, time_gains: bool, harmonics: int = 0, cycles: float = 1.0
+) -> np.ndarray:
     """``[z, 1, tau z, tau]`` (``[z, 1]`` without ``time_gains``) for the normalised states ``z`` ``(B, n)``
-    at the horizon's share ``tau`` (one number, or ``(B, 1)``: one per row), then ``sin(2 pi k tau)``,
-    ``cos(2 pi k tau)`` for ``k = 1 .. harmonics``.
+    at the horizon's share ``tau`` (one number, or ``(B, 1)``: one per row), then ``sin(2 pi k c tau)``,
+    ``cos(2 pi k c tau)`` for ``k = 1 .. harmonics``, ``c = cycles`` the periods in a horizon.
 
     >>> features(np.array([[0.5, -1.0]]), 0.25, True).tolist()
     [[0.5, -1.0, 1.0, 0.125, -0.25, 0.25]]
@@ -180,9 +190,33 @@ def features(z: np.ndarray, tau: float | np.ndarray, time_gains: bool, harmonics
     one = np.ones((z.shape[0], 1))
     parts = [z, one] if not time_gains else [z, one, tau * z, tau * one]
     for k in range(1, harmonics + 1):
-        angle = 2.0 * np.pi * k * (tau * one)
+        angle = 2.0 * np.pi * k * cycles * (tau * one)
         parts += [np.sin(angle), np.cos(angle)]
     return np.concatenate(parts, axis=1)
+
+
+def recurrence_period(formula: Any) -> float | None:
+    """The smallest finite deadline of an ``F`` (or an ``U``) that a ``G`` repeats: the period a patrol
+    (``G[0,6] F[0,3] west``) or a bounded response (``G (p -> F[0,2] q)``) asks for; None when the formula
+    repeats no deadline. The harmonics' base period when :attr:`SearchSettings.period` is left to the spec.
+
+    >>> from mitlc.spec.parse import parse_formula
+    >>> recurrence_period(parse_formula("G[0,6] F[0,3] a & G (b -> F[0,2.5] c) & F[0,1] d"))
+    2.5
+    >>> recurrence_period(parse_formula("F[0,4] G a")) is None
+    True
+    """
+    from mitlc.spec.ast import Eventually, Globally, Until
+
+    best: float | None = None
+    stack: list[tuple[Any, bool]] = [(formula, False)]
+    while stack:
+        node, repeated = stack.pop()
+        if repeated and isinstance(node, Eventually | Until) and 0 < node.interval.hi < np.inf:
+            best = node.interval.hi if best is None else min(best, node.interval.hi)
+        inner = repeated or isinstance(node, Globally)
+        stack.extend((c, inner) for c in node.children)
+    return best
 
 
 def scores(satisfied: np.ndarray, robustness: np.ndarray, violation_time: np.ndarray, horizon: float) -> np.ndarray:
@@ -291,6 +325,10 @@ class SearchRuns:
         self.params = ep.params
         self.n_inputs = ep.n_inputs
         self.judge = judge
+        period = self.settings.period
+        if period is None and rs.spec.formula is not None:
+            period = recurrence_period(rs.spec.monitor_formula)
+        self.cycles = ep.horizon / period if period else 1.0
         n = ep.n_state_features(self.settings.products)
         self.n_features = ((2 * n + 2) if self.settings.time_gains else (n + 1)) + 2 * self.settings.harmonics
         self.weights: np.ndarray = np.zeros((self.runs, self.n_features, self.n_inputs))
@@ -310,7 +348,9 @@ class SearchRuns:
         states[:, 0] = x
         with np.errstate(all="ignore"):
             for k in range(N):
-                phi = features(ep.normalise(x, st.products), k * self.dt / ep.horizon, st.time_gains, st.harmonics)
+                phi = features(
+                    ep.normalise(x, st.products), k * self.dt / ep.horizon, st.time_gains, st.harmonics, self.cycles
+                )
                 u = ep.inputs(np.einsum("bf,bfm->bm", phi, weights))
                 self._advance(x, u)
                 states[:, k + 1], actions[:, k] = x, u
@@ -535,7 +575,8 @@ class SearchPolicy(Policy):
         x = np.atleast_2d(np.asarray(x, dtype=float))
         W = s.weights[np.arange(x.shape[0]) % s.runs]
         tau = np.asarray(state, dtype=float)[:, None] * s.dt / s.episode.horizon
-        phi = features(s.episode.normalise(x, s.settings.products), tau, s.settings.time_gains, s.settings.harmonics)
+        st = s.settings
+        phi = features(s.episode.normalise(x, st.products), tau, st.time_gains, st.harmonics, s.cycles)
         return s.episode.inputs(np.einsum("bf,bfm->bm", phi, W))
 
     def step(self, state: np.ndarray, x_next: np.ndarray) -> np.ndarray:
