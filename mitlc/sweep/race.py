@@ -87,7 +87,8 @@ SEARCH_DESIGNS: tuple[tuple[str, dict[str, Any]], ...] = (
 """The policy search's designs in the race, in the order raced: name and the
 :class:`mitlc.learn.search.SearchSettings` each changes. Two periodic terms in time learn the cart's
 patrol (0.33 -> 0.90 on the tuning half, seed 0) and cost the dock (0.97 -> 0.67); four cost more
-than they gain (bench/suite/tuning/10-search-harmonics-2.json, 11-search-harmonics-4.json). Quadratic
+than they gain (bench/suite/tuning/10-search-harmonics-2.json, 11-search-harmonics-4.json). Their
+period is the spec's, the smallest deadline a ``G`` repeats, where it has one (records 19 and 20). Quadratic
 state features with 32 candidates a generation learn the three pendulum tasks of the tuning half that
 the linear search misses (0.07, 0.53, 0.00 -> 1.00 each, seed 0) and the unicycle's corridor
 (0.90 -> 1.00), and miss the cart's patrol (bench/suite/tuning/17-products-popsize-32.json against
