@@ -325,9 +325,9 @@ class SearchRuns:
         self.params = ep.params
         self.n_inputs = ep.n_inputs
         self.judge = judge
-        period = self.settings.period
-        if period is None and rs.spec.formula is not None:
-            period = recurrence_period(rs.spec.monitor_formula)
+        period, judged = self.settings.period, rs.spec.monitor_formula
+        if period is None and judged is not None:  # the formula the search is judged by sets the period
+            period = recurrence_period(judged)
         self.cycles = ep.horizon / period if period else 1.0
         n = ep.n_state_features(self.settings.products)
         self.n_features = ((2 * n + 2) if self.settings.time_gains else (n + 1)) + 2 * self.settings.harmonics
