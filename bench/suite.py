@@ -125,7 +125,7 @@ def train_task(job: tuple) -> dict:
 
     t0 = time.perf_counter()
     given = {a.split("=", 1)[0] for a in sets}
-    can_search = not sets and not spec.plant.stepped  # as mitlc train: no SACPN setting given, mitlc's own plant
+    can_search = not sets  # as mitlc train: no SACPN setting given
     raced = race(
         build,
         greedy_verdicts,
@@ -221,8 +221,12 @@ def _search_won(name, spec, raced, runs, trials, seed, sets, options, t0, race_s
 
 
 def _draw_fresh(agent, seed: int) -> np.ndarray:
-    """:data:`FRESH` starts per run from the init box for a search (as the SAC and search records draw them)."""
+    """:data:`FRESH` starts per run from the init box for a search (as the SAC and search records draw them);
+    an environment's resets where the search ran on one."""
     from mitlc.cli.train import _draw_starts
+
+    if not agent.settable:
+        return _fresh_starts(agent, FRESH, seed)
 
     return _draw_starts(agent.init_ranges, FRESH * agent.runs, seed + 31)
 
@@ -272,7 +276,7 @@ def train_search_task(job: tuple) -> dict:
     """One training of one task by :mod:`mitlc.learn.search` (CMA-ES over a time-varying linear
     feedback, judged by the monitor; ``trials`` None: its default generations); the record the page reads."""
     name, spec_path, seed, runs, trials, sets, options, _ = job
-    from mitlc.cli.train import _draw_starts, _judge
+    from mitlc.cli.train import _judge
     from mitlc.learn.search import SearchRuns, SearchSettings, default_generations
     from mitlc.learn.settings import parse_assignments
     from mitlc.monitor.offline import monitor
@@ -283,7 +287,7 @@ def train_search_task(job: tuple) -> dict:
     rs = compile_spec(spec, CompileOptions.from_spec(spec, **dict(options)))
 
     def judge(states: np.ndarray, dt: float):
-        return monitor(spec, states, dt, spec.monitor_formula)
+        return monitor(spec, states, dt, spec.monitor_formula, mean=True)
 
     agent = SearchRuns(rs, runs, seed, SearchSettings(**parse_assignments(SearchSettings, list(sets))), judge)
     trials = trials or default_generations(agent.n_steps)
@@ -292,7 +296,7 @@ def train_search_task(job: tuple) -> dict:
     wall = time.perf_counter() - t0
     judged = _judge(spec, agent.rollout(agent.evaluation_states()))
     failing = [str(f) for f in judged.failing if f is not None]
-    fresh = _judge(spec, agent.rollout(_draw_starts(agent.init_ranges, FRESH * runs, seed + 31))).satisfied
+    fresh = _judge(spec, agent.rollout(_fresh_starts(agent, FRESH, seed))).satisfied
     return {
         "job": f"{name} seed {seed}",
         "task": name,

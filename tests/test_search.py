@@ -47,7 +47,7 @@ def _runs(text: str, runs: int, seed: int = 0, **kw) -> SearchRuns:
     spec = parse_spec(text)
 
     def judge(states: np.ndarray, dt: float):
-        return monitor(spec, states, dt, spec.monitor_formula)
+        return monitor(spec, states, dt, spec.monitor_formula, mean=True)
 
     return SearchRuns(compile_spec(spec), runs, seed, SearchSettings(**kw), judge)
 
@@ -151,15 +151,16 @@ def test_a_satisfied_rollout_outscores_any_violated_one_and_later_or_nearer_is_b
 
 
 def test_what_it_cannot_search_is_one_line() -> None:
-    gym = parse_spec(
-        "plant gym:Pendulum-v1\nstate q = atan2(obs[1], obs[0]), w = obs[2]\ninit q in [-pi, pi], w in [-1, 1]\n"
-        "horizon 2\nprop up = abs(q) < 0.2\nformula F G up\n"
-    )
-    with pytest.raises(InputError, match="Gymnasium environment"):
-        SearchRuns(compile_spec(gym), 2, 0)
+    with pytest.raises(InputError, match="names no plant"):
+        SearchRuns(compile_spec(parse_spec("prop up = abs(q) < 0.2\nhorizon 2\nformula F G up\n")), 2, 0)
     with pytest.raises(InputError, match="no 'horizon'"):
         SearchRuns(compile_spec(parse_spec(EASY.replace("horizon 1\n", ""))), 2, 0)
-    for bad, what in (({"popsize": 2}, "popsize"), ({"starts": 0}, "starts"), ({"sigma0": -1.0}, "sigma0")):
+    for bad, what in (
+        ({"popsize": 2}, "popsize"),
+        ({"starts": 0}, "starts"),
+        ({"sigma0": -1.0}, "sigma0"),
+        ({"score": "max"}, "score must be one of mean, min"),
+    ):
         with pytest.raises(InputError, match=what) as info:
             _runs(EASY, 1, **bad)
         assert "\n" not in str(info.value)
@@ -352,9 +353,11 @@ def test_the_harmonics_period_is_the_deadline_a_g_repeats_and_a_patrol_learns_on
         want = lo + (np.tanh(3.0 * np.sin(2 * np.pi * t / seconds)) + 1) / 2 * (hi - lo)
         np.testing.assert_allclose(ro.actions[0], want, rtol=0, atol=1e-9)
     # swinging left and right every 1.5 s: a schedule on the spec's period learns it, one on the horizon's does not
+    # (25 generations, scored by the robustness as when this was measured: the averaged robustness, the
+    # default, learns it in 100, bench/suite/tuning/23's pendulum_alternate)
     learnt = {}
     for chosen in (None, 0.0):
-        sr = _runs(ALTERNATE, 4, seed=0, harmonics=2, period=chosen)
+        sr = _runs(ALTERNATE, 4, seed=0, harmonics=2, period=chosen, score="min")
         sr.train(25)
         learnt[chosen] = int(_judge(sr, sr.evaluation_states()).sum())
     assert learnt[None] >= 3 and learnt[0.0] == 0, learnt

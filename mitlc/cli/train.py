@@ -458,7 +458,7 @@ def train(
 
     given_sacpn = bool(assignments) or any(v is not None for v in (sigma, mask, saturation, penalty_ramp))
     searcher = None
-    if learner is None and not given_sacpn and spec.plant is not None and not spec.plant.stepped:
+    if learner is None and not given_sacpn and spec.plant is not None:
 
         def searcher(r: int, changes: dict):  # the race's search: runs 0 .. r - 1 of the training's own seed
             return SearchRuns(rs, r, seed, SearchSettings(**changes), _monitor_judge(spec))
@@ -610,7 +610,8 @@ def _monitor_judge(spec):
     def judge(states: np.ndarray, dt: float):
         from mitlc.monitor.offline import monitor
 
-        return monitor(spec, states, dt, spec.monitor_formula, blame=False)  # the search reads no failing part
+        # the search reads no failing part; it scores a violation by the averaged robustness
+        return monitor(spec, states, dt, spec.monitor_formula, blame=False, mean=True)
 
     return judge
 
@@ -1131,15 +1132,24 @@ def _simulate_sac(folder, spec_path, rollouts, seed, starts, plot_path, trace_pa
             file="--rollouts",
         )
     n = rollouts or agent.runs
-    x0 = agent.evaluation_states() if starts == "train" else _draw_starts(agent.init_ranges, n, seed)
+    settable = getattr(agent, "settable", True)  # a search on a Gymnasium environment starts where its reset puts it
+    if starts == "train":
+        x0 = agent.evaluation_states()
+    elif settable:
+        x0 = _draw_starts(agent.init_ranges, n, seed)
+    else:
+        x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
     ro = agent.rollout(x0)
     res = _print_rollouts(spec, ro, x0, agent)
     k = int(res.satisfied.sum())
+    fresh = f"fresh starts drawn from the initial set, seed {seed}"
+    if not settable:
+        fresh = f"fresh resets of the environment, seed {seed}"
     where = (
         "each run's evaluation start, as mitlc train judged"
         + ("" if spec.source == trained.source else ", here by --spec")
         if starts == "train"
-        else f"fresh starts drawn from the initial set, seed {seed}"
+        else fresh
     )
     click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
     _write_traces(ro, agent.plant.state_names, trace_path, agent.plant)

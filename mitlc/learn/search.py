@@ -38,18 +38,25 @@ runs beside it; the caller's generator is left as it was), and judges every roll
 in turn, satisfaction, how late a violation came and how near it was to satisfaction:
 
 * satisfied: ``2 + tanh(robustness)`` (in ``[2, 3)``: a larger margin is better);
-* violated:  ``t_v / horizon + tanh(robustness)`` (in ``[-1, 1)``: a violation that comes later,
-  or by less, is better; the time alone would leave a balance task whose pole falls at once
-  and one whose pole falls at the end equal in robustness, the robustness alone every missed
-  deadline equal in time).
+* violated:  ``t_v / horizon + tanh(near)`` (in ``[-1, 2)``: a violation that comes later, or
+  nearer to satisfaction, is better; the time alone would leave a balance task whose pole falls at
+  once and one whose pole falls at the end equal, the nearness alone every missed deadline equal in
+  time). ``near`` is the **averaged robustness** (``score = mean``, the default): the robustness with
+  each ``G``'s minimum over its window replaced by the window's mean
+  (:func:`mitlc.monitor.offline.mean_robustness`), so a swing-up that reaches the top and falls back
+  scores above one that never leaves the bottom, which the robustness (the worst sample, about
+  ``-pi`` for both) ranks alike. ``score = min`` takes the robustness, at most 0, as before.
 
 A candidate's fitness is the mean score over its starts; CMA-ES uses only the order. All runs and
 candidates of a generation roll out together along the plant's run axis (one ``act``, one plant
 step per sample for the whole batch) and are judged in one call. A run's policy is the mean of its
 search distribution after the last generation (``xfavorite``), which is what it rolls out greedily.
 
-The plant must be one mitlc can put in a chosen state (not a Gymnasium environment that resets
-itself): the search rolls every candidate out from the same starts.
+On a Gymnasium environment, which cannot be put in a chosen state, a start is a seed: the copies of
+every candidate of a run are reset with the same seed (drawn from the run's stream), so they start
+from the same state (the environment's own start, inside the spec's ``init``), and are stepped through
+the environment (:class:`mitlc.plants.gym_env.GymSimulator`; Pendulum-v1 and MountainCarContinuous-v0 by
+their numpy twins, :mod:`mitlc.plants.gym_twins`).
 """
 
 from __future__ import annotations
@@ -80,6 +87,8 @@ FILE = "search.npz"
 """A search's file in its training folder: the gains per run, the fitness per generation and a ``meta``
 record (JSON text: the spec, the settings, runs, seed, generations, the plant's record)."""
 MAX_META_CHARS = 1 << 22
+SCORES = ("mean", "min")
+"""The scores of a violated rollout (:attr:`SearchSettings.score`)."""
 
 
 def default_generations(n_steps: int) -> int:
@@ -116,6 +125,12 @@ class SearchSettings:
     period: float | None = None
     """The harmonics' base period in seconds, ``sin(2 pi k t / period)``: None takes the spec's
     (:func:`recurrence_period`, the smallest deadline a ``G`` repeats) or else the horizon; 0 the horizon."""
+    score: str = "mean"
+    """How a violated rollout is scored beside its violation time: ``mean``, by its averaged robustness
+    (every ``G``'s window minimum replaced by its mean, :func:`mitlc.monitor.offline.mean_robustness`), or
+    ``min``, by its robustness. ``mean`` tells a swing-up that reaches the top and falls back from one
+    that never leaves the bottom, which the robustness (the worst sample) scores alike; a
+    ``search.npz`` written before the setting existed reloads with ``min``, as it was trained."""
     products: bool = False
     """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
     cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
@@ -132,6 +147,8 @@ class SearchSettings:
             raise InputError(f"sigma0 must be a positive number, got {self.sigma0}", file="--set")
         if self.period is not None and not (np.isfinite(self.period) and self.period >= 0):
             raise InputError(f"period must be a number of seconds >= 0, got {self.period}", file="--set")
+        if self.score not in SCORES:
+            raise InputError(f"score must be one of {', '.join(SCORES)}, got {self.score!r}", file="--set")
         if not (np.isfinite(self.scale_floor) and self.scale_floor > 0):
             raise InputError(f"scale_floor must be a positive number, got {self.scale_floor}", file="--set")
 
@@ -141,7 +158,8 @@ class SearchSettings:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> SearchSettings:
         names = {f.name for f in fields(cls)}
-        d = {"spec_scale": False, "period": 0.0, **d}  # a file from before a setting was trained without it
+        # a file from before a setting existed was trained without it
+        d = {"spec_scale": False, "period": 0.0, "score": "min", **d}
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
@@ -219,8 +237,15 @@ def recurrence_period(formula: Any) -> float | None:
     return best
 
 
-def scores(satisfied: np.ndarray, robustness: np.ndarray, violation_time: np.ndarray, horizon: float) -> np.ndarray:
-    """Each rollout's score (the module's text): satisfied ``2 + tanh(rho)``, violated ``t_v / T + tanh(rho)``.
+def scores(
+    satisfied: np.ndarray,
+    robustness: np.ndarray,
+    violation_time: np.ndarray,
+    horizon: float,
+    near: np.ndarray | None = None,
+) -> np.ndarray:
+    """Each rollout's score (the module's text): satisfied ``2 + tanh(rho)``, violated ``t_v / T + tanh(rho)``,
+    or with ``near`` (the averaged robustness, ``score=mean``) violated ``t_v / T + tanh(near)`` (below 2 still).
 
     >>> s = scores(np.array([True, False, False, False]), np.array([0.5, -0.1, -0.1, -np.inf]),
     ...            np.array([np.nan, 1.0, 3.0, 3.0]), 4.0)
@@ -230,7 +255,11 @@ def scores(satisfied: np.ndarray, robustness: np.ndarray, violation_time: np.nda
     rho = np.nan_to_num(np.asarray(robustness, dtype=float), nan=-np.inf)
     tv = np.nan_to_num(np.asarray(violation_time, dtype=float), nan=0.0, posinf=horizon, neginf=0.0)
     late = np.clip(tv / horizon, 0.0, 1.0)
-    return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), late + np.tanh(np.minimum(rho, 0.0)))
+    if near is None:
+        miss = np.tanh(np.minimum(rho, 0.0))
+    else:
+        miss = np.tanh(np.nan_to_num(np.asarray(near, dtype=float), nan=-np.inf))
+    return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), late + miss)
 
 
 class _Episode:
@@ -239,12 +268,8 @@ class _Episode:
     def __init__(self, rs: RewardSystem, scale_floor: float = 0.1, spec_scale: bool = False) -> None:
         s = rs.spec
         plant = s.plant
-        if plant is None or plant.stepped:
-            what = "names no plant" if plant is None else f"is for plant {s.plant_name}, a Gymnasium environment"
-            raise InputError(
-                f"the spec {what}: the policy search rolls candidates out from chosen starts, on mitlc's own plants",
-                file=s.path,
-            )
+        if plant is None:
+            raise InputError("the spec names no plant: the policy search rolls candidates out on one", file=s.path)
         if s.horizon is None:
             raise InputError("the spec has no 'horizon': the policy search judges whole rollouts", file=s.path)
         self.plant = plant
@@ -334,7 +359,12 @@ class SearchRuns:
         self.weights: np.ndarray = np.zeros((self.runs, self.n_features, self.n_inputs))
         self.returns = np.zeros((self.runs, 0))
         self.trial = 0
-        self._advance = make_integrator(ep.plant, ep.params)
+        self._sim: Any = None
+        if ep.plant.stepped:  # an environment: its copies are reset (candidates given the same seeds) and stepped
+            self._sim = ep.plant.simulator(ep.params, {r.var: (r.lo, r.hi) for r in rs.spec.init})
+            self._advance = self._sim.step
+        else:
+            self._advance = make_integrator(ep.plant, ep.params)
         self._runtime: Any = None
 
     # ------------------------------------------------------------------ rolling out
@@ -342,6 +372,8 @@ class SearchRuns:
         """States ``(B, N + 1, n)`` and inputs of rows ``x0`` ``(B, n)`` under gains ``weights`` ``(B, f, m)``."""
         ep, st = self.episode, self.settings
         x = np.array(x0, dtype=float)
+        if self._sim is not None:  # the copies must be where the last reset left them
+            self._sim.start(x)
         B, N = x.shape[0], self.n_steps
         states = np.empty((B, N + 1, x.shape[1]))
         actions = np.empty((B, N) if self.n_inputs == 1 else (B, N, self.n_inputs))
@@ -358,6 +390,30 @@ class SearchRuns:
 
     def _draw(self, rng: np.random.Generator, count: int) -> np.ndarray:
         return np.array([[rng.uniform(lo, hi) for lo, hi in self.init_ranges] for _ in range(count)])
+
+    @property
+    def settable(self) -> bool:
+        """Whether a rollout may start anywhere (mitlc's own plants) or only where a reset put the copies
+        (a Gymnasium environment: :meth:`sample_init`)."""
+        return self._sim is None
+
+    def sample_init(self, rngs: list[np.random.Generator]) -> np.ndarray:
+        """One start per generator: drawn from the ``init`` box, or an environment's copies reset from it."""
+        if self._sim is not None:
+            return np.asarray(self._sim.reset(rngs))
+        return np.stack([self._draw(g, 1)[0] for g in rngs])
+
+    def _starts(self, rngs: list[np.random.Generator], P: int, S: int) -> np.ndarray:
+        """Rows ``(R * P * S, n)``: run ``r``'s ``S`` starts of this generation, the same for each of
+        its ``P`` candidates (row ``(r P + p) S + s``). An environment's copies are reset with the same
+        seed for every candidate of a start, each seed drawn from the run's stream."""
+        R = len(rngs)
+        if self._sim is None:
+            x0 = np.stack([self._draw(rngs[r], S) for r in range(R)])  # (R, S, n)
+            return np.repeat(x0, P, axis=0).reshape(R * P * S, -1)
+        seeds = [[int(rngs[r].integers(2**63)) for _ in range(S)] for r in range(R)]
+        gens = [np.random.default_rng(seeds[r][s]) for r in range(R) for _ in range(P) for s in range(S)]
+        return self._sim.reset(gens)
 
     # ------------------------------------------------------------------ training
     def train(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
@@ -394,12 +450,15 @@ class SearchRuns:
             best = np.zeros((R, trials))
             for g in range(trials):
                 cand = np.array([ask(r) for r in range(R)])  # (R, P, dim)
-                x0 = np.stack([self._draw(rngs[r], S) for r in range(R)])  # (R, S, n)
                 W = np.repeat(cand.reshape(R * P, self.n_features, self.n_inputs), S, axis=0)
-                starts = np.repeat(x0, P, axis=0).reshape(R * P * S, -1)
-                states, _ = self._roll(W, starts)
+                states, _ = self._roll(W, self._starts(rngs, P, S))
                 verdict = self.judge(states, self.dt)
-                fit = scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon)
+                near = None
+                if st.score == "mean":
+                    near = getattr(verdict, "mean_robustness", None)
+                    if near is None:
+                        raise TrainingError("the search's judge gave no averaged robustness (score=mean)")
+                fit = scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near)
                 fit = fit.reshape(R, P, S).mean(axis=2)
                 if not np.all(np.isfinite(fit)):
                     raise TrainingError(f"the policy search's fitness is not finite in generation {g + 1}")
@@ -418,8 +477,11 @@ class SearchRuns:
 
     # ------------------------------------------------------------------ judging
     def evaluation_states(self) -> np.ndarray:
-        """One initial state per run, drawn from the ``init`` box by run ``r``'s evaluation stream ``(seed, r, 1)``."""
+        """One initial state per run, drawn from the ``init`` box by run ``r``'s evaluation stream ``(seed, r, 1)``
+        (an environment's copies reset from it)."""
         ids = range(self.first, self.first + self.runs)
+        if self._sim is not None:
+            return np.asarray(self._sim.reset([np.random.default_rng([self.seed, r, 1]) for r in ids]))
         return np.stack([self._draw(np.random.default_rng([self.seed, r, 1]), 1)[0] for r in ids])
 
     @property

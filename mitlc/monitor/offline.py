@@ -73,6 +73,8 @@ __all__ = [
     "state_columns",
     "needed_variables",
     "judged_formula",
+    "mean_robustness",
+    "window_mean",
     "TIME_TOL",
 ]
 
@@ -93,6 +95,8 @@ class MonitorResult:
     failing: tuple[str | None, ...]
     """Per run: text of the smallest subformula responsible for the violation, None if satisfied
     (and None for every run when :func:`monitor` was asked for no blame)."""
+    mean_robustness: np.ndarray | None = None
+    """``(R,)`` float: :func:`mean_robustness` at time 0, when :func:`monitor` was asked for it (``mean=True``)."""
 
 
 # ----------------------------------------------------------------- predicates
@@ -658,10 +662,148 @@ def _prepare(spec: Spec, states: Any, dt: float, formula: A.Formula | None) -> t
     return _Eval(spec, env, dt, R, L), f
 
 
+# ----------------------------------------------------------------- averaged robustness
+#
+# The robustness of G is its window's worst sample: a trace that holds a condition for all but one
+# instant scores as low as one that never holds it. A search for a controller needs to tell those
+# apart (a swing-up that reaches the top and falls back against one that never leaves the bottom),
+# so the averaged robustness takes G's window *mean* instead (the window cut at the trace's end, as
+# the monitor's windows are) and every other operator as the robustness does. It is a score, not a
+# verdict: its sign need not agree with satisfaction. (Averaged temporal operators for
+# falsification: Akazaki and Hasuo, "Time robustness in MTL and expressivity in hybrid system
+# falsification", CAV 2015.)
+
+MEAN_BOUND = 1e9
+"""Robustness beyond this (an unbounded predicate's or a constant's ``±inf``) counts as this in a mean."""
+
+
+def window_mean(x: np.ndarray, lo: int, hi: float) -> np.ndarray:
+    """``y[:, k] = mean(x[:, k+lo .. min(k+hi, N)])``, ``+inf`` where the window is empty (G's identity),
+    values clipped to ``±MEAN_BOUND`` first.
+
+    >>> window_mean(np.array([[3.0, 1.0, 4.0, 1.0]]), 1, 2)
+    array([[2.5, 2.5, 1. , inf]])
+    """
+    R, L = x.shape
+    out = np.full((R, L), np.inf)
+    first = np.arange(L) + lo
+    last = np.minimum(np.arange(L) + min(hi, L), L - 1)
+    ok = (first <= L - 1) & (first <= last)
+    if not ok.any():
+        return out
+    c = np.zeros((R, L + 1))
+    np.cumsum(np.clip(x, -MEAN_BOUND, MEAN_BOUND), axis=1, out=c[:, 1:])
+    a, b = first[ok], last[ok]
+    out[:, ok] = (c[:, b + 1] - c[:, a]) / (b - a + 1)
+    return out
+
+
+@singledispatch
+def _mean(f: A.Formula, ev: _Eval) -> np.ndarray:
+    """The ``(R, N+1)`` averaged robustness signal of ``f`` (its operands' from the cache)."""
+    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+
+
+def _msig(f: A.Formula, ev: _Eval) -> np.ndarray:
+    out = ev._cache.get(("mean", f))
+    if out is None:
+        out = ev._fill(f, "mean", lambda node: _mean(node, ev))
+    return out
+
+
+@_mean.register
+def _(f: A.Const, ev: _Eval) -> np.ndarray:
+    return REAL.full((ev.R, ev.L), np.inf if f.value else -np.inf)
+
+
+@_mean.register
+def _(f: A.Atom, ev: _Eval) -> np.ndarray:
+    return ev.atom(f.name)[1].astype(float)
+
+
+@_mean.register
+def _(f: A.Not, ev: _Eval) -> np.ndarray:
+    return -_msig(f.child, ev)
+
+
+@_mean.register
+def _(f: A.Weighted, ev: _Eval) -> np.ndarray:
+    return _msig(f.child, ev)
+
+
+@_mean.register
+def _(f: A.And, ev: _Eval) -> np.ndarray:
+    return np.minimum(_msig(f.left, ev), _msig(f.right, ev))
+
+
+@_mean.register
+def _(f: A.Or, ev: _Eval) -> np.ndarray:
+    return np.maximum(_msig(f.left, ev), _msig(f.right, ev))
+
+
+@_mean.register
+def _(f: A.Implies, ev: _Eval) -> np.ndarray:
+    return np.maximum(-_msig(f.left, ev), _msig(f.right, ev))
+
+
+@_mean.register
+def _(f: A.Iff, ev: _Eval) -> np.ndarray:
+    a, b = _msig(f.left, ev), _msig(f.right, ev)
+    return np.minimum(np.maximum(-a, b), np.maximum(a, -b))
+
+
+@_mean.register
+def _(f: A.Eventually, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return window(_msig(f.child, ev), lo, hi, np.maximum, -np.inf)
+
+
+@_mean.register
+def _(f: A.Globally, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return window_mean(_msig(f.child, ev), lo, hi)
+
+
+@_mean.register
+def _(f: A.Until, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return until(_msig(f.left, ev), _msig(f.right, ev), lo, hi, REAL)
+
+
+@_mean.register
+def _(f: A.Release, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return -until(-_msig(f.left, ev), -_msig(f.right, ev), lo, hi, REAL)
+
+
+@_mean.register
+def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    a, b = _msig(f.left, ev), _msig(f.right, ev)
+    glo, ghi = ev.offsets(_upto(f.interval))
+    return np.maximum(until(a, b, lo, hi, REAL), window_mean(a, glo, ghi))
+
+
+def mean_robustness(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> np.ndarray:
+    """The averaged robustness at time 0 of each trace ``(R,)`` (the section above): the robustness
+    with every ``G``'s minimum over its window replaced by the window's mean (``W``'s ``G`` part too).
+    ``states``, ``dt`` and ``formula`` as :func:`monitor`'s.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> spec = parse_spec("prop up = abs(q) < 0.5\\nformula G[0,1.5] up")
+    >>> mean_robustness(spec, np.array([[0.0], [0.0], [0.0], [1.5]]), dt=0.5)
+    array([0.125])
+    """
+    ev, f = _prepare(spec, states, dt, formula)
+    return _msig(f, ev)[:, 0].astype(float)
+
+
 # ----------------------------------------------------------------- API
 
 
-def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None, blame: bool = True) -> MonitorResult:
+def monitor(
+    spec: Spec, states: Any, dt: float, formula: A.Formula | None = None, blame: bool = True, mean: bool = False
+) -> MonitorResult:
     """Judge a batch of sampled traces by ``formula`` (default ``spec.monitor_formula``).
 
     ``states`` is an array ``(R, N+1, n)`` (or one trace ``(N+1, n)``) with
@@ -671,7 +813,8 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     ``[-pi, pi)`` first. ``blame=False`` leaves ``failing`` None for every run: naming the
     failing part walks the formula once per violated run in Python (a sixth of the judging of a
     cart-pole search's first candidates, ``bench/bench_search.py``); a policy search needs only
-    the verdict, the robustness and the violation time (the same numbers either way).
+    the verdict, the robustness and the violation time (the same numbers either way). ``mean=True``
+    adds the averaged robustness (:func:`mean_robustness`, the policy search's score of a violation).
 
     >>> from mitlc.spec.parse import parse_spec
     >>> spec = parse_spec("prop up = abs(q) < 0.3\\nformula G[0,1] !up")
@@ -694,7 +837,8 @@ def monitor(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
         if id(part) not in texts:
             texts[id(part)] = str(part)
         failing[r] = texts[id(part)]
-    return MonitorResult(satisfied, robustness, violation, tuple(failing))
+    averaged = _msig(f, ev)[:, 0].astype(float) if mean else None
+    return MonitorResult(satisfied, robustness, violation, tuple(failing), averaged)
 
 
 def verdict(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> tuple[np.ndarray, np.ndarray]:

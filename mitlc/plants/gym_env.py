@@ -348,7 +348,9 @@ class GymSimulator:
     returns the states; ``step(x, u)`` applies ``u`` and writes the new states into
     ``x``, keeping a copy whose episode ended in its last state. ``u`` is ``(B,)``,
     clipped to ``[-u_max, u_max]``, or with ``box = (lo, hi)`` (an action of several
-    entries) ``(B, m)``, each entry clipped to its bounds.
+    entries) ``(B, m)``, each entry clipped to its bounds. An environment with a numpy twin
+    (:mod:`mitlc.plants.gym_twins`: Pendulum-v1, MountainCarContinuous-v0) is reset by Gymnasium and
+    stepped by its twin, all copies at once, with the same numbers to the bit.
     """
 
     settable = False
@@ -371,6 +373,7 @@ class GymSimulator:
         self._init = cols
         self._periodic = [i for i, o in enumerate(self.observe) if o.var.periodic]
         self._envs: dict[int, Any] = {}
+        self._twins: dict[int, Any] = {}
         self._done: dict[int, np.ndarray] = {}
         self.last: dict[int, np.ndarray] = {}
         """The states the last :meth:`reset` of each batch size returned."""
@@ -390,6 +393,9 @@ class GymSimulator:
                 **args,
             )
             self._envs[B] = env
+            from mitlc.plants.gym_twins import twin_for
+
+            self._twins[B] = twin_for(self.env_id, args, env)
             self._flat_space = env.single_observation_space
             self._box = isinstance(self._flat_space, gym.spaces.Box)
             self._action = np.zeros((B, *env.single_action_space.shape), dtype=env.single_action_space.dtype)
@@ -438,6 +444,9 @@ class GymSimulator:
             obs, _ = env.reset(seed=seeds, options={"reset_mask": bad.copy()})
             x[bad] = self._states(obs, B)[bad]
             bad = self._outside(x)
+        twin = self._twins.get(B)
+        if twin is not None:  # the twin steps the copies from the states the environment reset them to
+            twin.load(env.envs)
         self._done[B] = np.zeros(B, dtype=bool)
         self.last[B] = x.copy()
         return x
@@ -452,7 +461,12 @@ class GymSimulator:
             a.reshape(B, -1)[:, 0] = np.clip(u, -self.u_max, self.u_max)
         else:
             a.reshape(B, -1)[:] = np.clip(np.asarray(u).reshape(B, -1), self.box[0], self.box[1])
-        obs, _, terminated, truncated, _ = env.step(a)
+        twin = self._twins.get(B)
+        if twin is not None:
+            obs, terminated = twin.step(a)
+            truncated = terminated
+        else:
+            obs, _, terminated, truncated, _ = env.step(a)
         done = self._done[B]
         new = self._states(obs, B)
         live = ~done
@@ -472,3 +486,4 @@ class GymSimulator:
         for env in self._envs.values():
             env.close()
         self._envs.clear()
+        self._twins.clear()

@@ -1,0 +1,146 @@
+"""The numpy twins of Pendulum-v1 and MountainCarContinuous-v0 (mitlc.plants.gym_twins): the environment's
+own numbers to the bit, used by the trainers' copies only where they agree, and the policy search on an
+environment (candidates of a run reset with the same seeds)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium")
+
+from mitlc.learn.search import SearchRuns, SearchSettings  # noqa: E402
+from mitlc.monitor.offline import monitor  # noqa: E402
+from mitlc.petri.compile import compile_spec  # noqa: E402
+from mitlc.plants import gym_twins  # noqa: E402
+from mitlc.plants.gym_twins import MountainCarTwin, PendulumTwin, compare, twin_for  # noqa: E402
+from mitlc.spec.parse import parse_spec  # noqa: E402
+
+MC = """
+plant gym:MountainCarContinuous-v0(dt = 1)
+state x = obs[0], v = obs[1]
+init x in [-0.6, -0.4], v = 0
+horizon 200
+prop left = x < -0.8
+prop goal = x >= 0.45
+formula F[0,50] (left & F[0,100] G goal)
+"""
+
+PEND = """
+plant gym:Pendulum-v1
+state q = atan2(obs[1], obs[0]), w = obs[2]
+init q in [-pi, pi], w in [-1, 1]
+horizon 3
+prop up = abs(q) < 0.3
+formula F[0,2] up
+"""
+
+
+@pytest.mark.parametrize(
+    "env_id, kwargs",
+    [
+        ("Pendulum-v1", {}),
+        ("Pendulum-v1", {"g": 9.81}),
+        ("MountainCarContinuous-v0", {}),
+        ("MountainCarContinuous-v0", {"goal_velocity": 0.01}),
+    ],
+)
+def test_twin_gives_the_environments_numbers_to_the_bit(env_id, kwargs):
+    ok, ends = compare(env_id, kwargs, steps=1500, copies=9)
+    assert ok
+    if env_id.startswith("Mountain"):
+        assert ends > 10  # the goal (termination, a reset, the twin reading the new state) was reached
+
+
+def test_the_mountain_cars_wall_and_speed_limit_are_exercised():
+    """The branches the comparison must cover: the velocity clipped at 0.07, the car stopped at the wall."""
+    env = gym.make("MountainCarContinuous-v0", disable_env_checker=True, max_episode_steps=10**9)
+    env.reset(seed=0)
+    twin = MountainCarTwin(env.unwrapped, 1)
+    twin.load([env])
+    speeds, wall = [], 0
+    for _ in range(600):
+        a = np.array([[1.0 if twin.vel[0] >= 0 else -1.0]], dtype=np.float32)
+        obs, _ = twin.step(a)
+        o, *_ = env.step(a[0])
+        assert np.array_equal(o, obs[0])
+        speeds.append(abs(float(obs[0, 1])))
+        wall += float(obs[0, 0]) == float(np.float32(-1.2))
+    assert max(speeds) == pytest.approx(0.07) and wall > 0
+
+
+def test_twins_only_for_the_environments_they_reproduce():
+    vec = gym.make_vec("Pendulum-v1", num_envs=2, vectorization_mode="sync")
+    assert isinstance(twin_for("Pendulum-v1", {}, vec), PendulumTwin)
+    other = gym.make_vec("Acrobot-v1", num_envs=2, vectorization_mode="sync")
+    assert twin_for("Acrobot-v1", {}, other) is None
+    # an id with a twin whose environment is another class (registered by a user over it): no twin
+    assert twin_for("Pendulum-v1", {}, other) is None
+
+
+def test_a_twin_that_disagrees_is_not_used(monkeypatch):
+    class Off(PendulumTwin):
+        def step(self, action):
+            obs, term = super().step(action)
+            obs[:, 2] += np.float32(1e-3)
+            return obs, term
+
+    monkeypatch.setitem(gym_twins.TWINS, "Pendulum-v1", Off)
+    monkeypatch.setattr(gym_twins, "_CHECKED", {})
+    vec = gym.make_vec("Pendulum-v1", num_envs=2, vectorization_mode="sync")
+    assert not compare("Pendulum-v1", {}, steps=5)[0]
+    assert twin_for("Pendulum-v1", {}, vec) is None
+
+
+def _rollout(spec, seeds, steps):
+    sim = spec.plant.simulator(spec.plant.params(), {r.var: (r.lo, r.hi) for r in spec.init})
+    x = sim.reset([np.random.default_rng(s) for s in seeds])
+    out = [x.copy()]
+    for k in range(steps):
+        sim.step(x, np.where(x[:, 1] >= 0, 1.0, -1.0) * (0.5 + 0.1 * (k % 5)))
+        out.append(x.copy())
+    return np.stack(out), sim
+
+
+@pytest.mark.parametrize("text", [MC, PEND])
+def test_the_simulator_gives_the_same_states_with_and_without_the_twin(monkeypatch, text):
+    spec = parse_spec(text)
+    fast, sim = _rollout(spec, range(6), 120)
+    assert any(t is not None for t in sim._twins.values())
+    monkeypatch.setattr(gym_twins, "TWINS", {})
+    slow, sim = _rollout(spec, range(6), 120)
+    assert all(t is None for t in sim._twins.values())
+    np.testing.assert_array_equal(fast, slow)
+
+
+def _judge(spec):
+    return lambda states, dt: monitor(spec, states, dt, spec.monitor_formula, blame=False, mean=True)
+
+
+def test_the_search_runs_on_an_environment_with_one_start_per_seed():
+    spec = parse_spec(MC)
+    rs = compile_spec(spec)
+    search = SearchRuns(rs, 2, seed=3, settings=SearchSettings(popsize=4, starts=2), judge=_judge(spec))
+    rngs = [np.random.default_rng([3, r, 0]) for r in range(2)]
+    x = search._starts(rngs, 4, 2)  # (R * P * S, n): run r's S starts, the same for its P candidates
+    x = x.reshape(2, 4, 2, -1)
+    for r in range(2):
+        for p in range(4):
+            np.testing.assert_array_equal(x[r, p], x[r, 0])
+    assert not np.array_equal(x[0, 0, 0], x[0, 0, 1]) and not np.array_equal(x[0, 0], x[1, 0])
+    assert np.all((x[..., 0] >= -0.6) & (x[..., 0] <= -0.4)) and np.all(x[..., 1] == 0)
+
+
+def test_the_search_learns_the_mountain_cars_left_hill_first():
+    """The check half's gym_mountain_car_left_first (0.32 with SACPN's designs, docs/suite.md record 21):
+    the linear search learns it; the same seed gives the same gains."""
+    spec = parse_spec(MC)
+    rs = compile_spec(spec)
+    a = SearchRuns(rs, 4, seed=0, judge=_judge(spec))
+    a.train(25)
+    ro = a.rollout(a.evaluation_states())
+    ok = monitor(spec, ro.states, ro.dt).satisfied
+    assert ok.sum() >= 3
+    b = SearchRuns(rs, 4, seed=0, judge=_judge(spec))
+    b.train(25)
+    np.testing.assert_array_equal(a.weights, b.weights)
