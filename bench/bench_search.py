@@ -3,8 +3,8 @@
 A generation of :class:`mitlc.learn.search.SearchRuns` with R runs is: every run's CMA-ES asks for
 ``popsize`` candidates, ``R * popsize * starts`` rows are rolled out on the plant in numpy
 (``SearchRuns._roll``), the monitor judges every rollout (``judge``: satisfaction, robustness, the
-time of the first violation and the averaged robustness, no failing part named:
-``monitor(..., blame=False, mean=True)``, as ``mitlc train`` judges), and every
+time of the first violation, no failing part named: ``monitor(..., blame=False)``, as ``mitlc train``
+judges its designs but the last, which adds the averaged robustness), and every
 run's CMA-ES is told the fitness. This bench times the
 three parts separately on one spec, in one process and on one core (BLAS threads pinned to 1),
 each the median of ``--repeat`` calls on the same candidates and starts, and prints each part's
@@ -73,7 +73,7 @@ def parts(spec_path: Path, runs: int, repeat: int, seed: int = 0) -> tuple[dict[
         "ask and tell (CMA-ES, per run)": timed(ask_tell, repeat),
         f"rollout ({R * P * S} rows x {agent.n_steps} steps, numpy)": timed(lambda: agent._roll(W, starts), repeat),
         "judge (the monitor on every rollout, no blame)": timed(
-            lambda: monitor(spec, states, agent.dt, spec.monitor_formula, blame=False, mean=True), repeat
+            lambda: monitor(spec, states, agent.dt, spec.monitor_formula, blame=False), repeat
         ),
     }, timed(lambda: monitor(spec, states, agent.dt, spec.monitor_formula), repeat)
 

@@ -286,8 +286,8 @@ def train_search_task(job: tuple) -> dict:
     spec = load_spec(spec_path)
     rs = compile_spec(spec, CompileOptions.from_spec(spec, **dict(options)))
 
-    def judge(states: np.ndarray, dt: float):
-        return monitor(spec, states, dt, spec.monitor_formula, mean=True)
+    def judge(states: np.ndarray, dt: float, mean: bool = False):
+        return monitor(spec, states, dt, spec.monitor_formula, mean=mean)
 
     agent = SearchRuns(rs, runs, seed, SearchSettings(**parse_assignments(SearchSettings, list(sets))), judge)
     trials = trials or default_generations(agent.n_steps)

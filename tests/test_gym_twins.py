@@ -114,7 +114,7 @@ def test_the_simulator_gives_the_same_states_with_and_without_the_twin(monkeypat
 
 
 def _judge(spec):
-    return lambda states, dt: monitor(spec, states, dt, spec.monitor_formula, blame=False, mean=True)
+    return lambda states, dt, mean=False: monitor(spec, states, dt, spec.monitor_formula, blame=False, mean=mean)
 
 
 def test_the_search_runs_on_an_environment_with_one_start_per_seed():

@@ -607,11 +607,11 @@ def _train_sac(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) 
 def _monitor_judge(spec):
     """The policy search's judge: the monitor's verdict on rollouts of ``spec``'s monitor formula."""
 
-    def judge(states: np.ndarray, dt: float):
+    def judge(states: np.ndarray, dt: float, mean: bool = False):
         from mitlc.monitor.offline import monitor
 
-        # the search reads no failing part; it scores a violation by the averaged robustness
-        return monitor(spec, states, dt, spec.monitor_formula, blame=False, mean=True)
+        # the search reads no failing part; with score=mean it asks for the averaged robustness
+        return monitor(spec, states, dt, spec.monitor_formula, blame=False, mean=mean)
 
     return judge
 

@@ -38,14 +38,14 @@ runs beside it; the caller's generator is left as it was), and judges every roll
 in turn, satisfaction, how late a violation came and how near it was to satisfaction:
 
 * satisfied: ``2 + tanh(robustness)`` (in ``[2, 3)``: a larger margin is better);
-* violated:  ``t_v / horizon + tanh(near)`` (in ``[-1, 2)``: a violation that comes later, or
-  nearer to satisfaction, is better; the time alone would leave a balance task whose pole falls at
-  once and one whose pole falls at the end equal, the nearness alone every missed deadline equal in
-  time). ``near`` is the **averaged robustness** (``score = mean``, the default): the robustness with
-  each ``G``'s minimum over its window replaced by the window's mean
-  (:func:`mitlc.monitor.offline.mean_robustness`), so a swing-up that reaches the top and falls back
-  scores above one that never leaves the bottom, which the robustness (the worst sample, about
-  ``-pi`` for both) ranks alike. ``score = min`` takes the robustness, at most 0, as before.
+* violated:  ``t_v / horizon + tanh(robustness)`` (in ``[-1, 1)``: a violation that comes later,
+  or by less, is better; the time alone would leave a balance task whose pole falls at once
+  and one whose pole falls at the end equal in robustness, the robustness alone every missed
+  deadline equal in time). With ``score = mean`` the robustness is replaced by the **averaged
+  robustness** (each ``G``'s minimum over its window replaced by the window's mean,
+  :func:`mitlc.monitor.offline.mean_robustness`; the score is then in ``[-1, 2)``): a swing-up that
+  reaches the top and falls back scores above one that never leaves the bottom, which the
+  robustness (the worst sample, about ``-pi`` for both) ranks alike.
 
 A candidate's fitness is the mean score over its starts; CMA-ES uses only the order. All runs and
 candidates of a generation roll out together along the plant's run axis (one ``act``, one plant
@@ -125,12 +125,12 @@ class SearchSettings:
     period: float | None = None
     """The harmonics' base period in seconds, ``sin(2 pi k t / period)``: None takes the spec's
     (:func:`recurrence_period`, the smallest deadline a ``G`` repeats) or else the horizon; 0 the horizon."""
-    score: str = "mean"
-    """How a violated rollout is scored beside its violation time: ``mean``, by its averaged robustness
-    (every ``G``'s window minimum replaced by its mean, :func:`mitlc.monitor.offline.mean_robustness`), or
-    ``min``, by its robustness. ``mean`` tells a swing-up that reaches the top and falls back from one
-    that never leaves the bottom, which the robustness (the worst sample) scores alike; a
-    ``search.npz`` written before the setting existed reloads with ``min``, as it was trained."""
+    score: str = "min"
+    """How a violated rollout is scored beside its violation time: ``min``, by its robustness, or
+    ``mean``, by its averaged robustness (every ``G``'s window minimum replaced by its mean,
+    :func:`mitlc.monitor.offline.mean_robustness`; the judge is then called with ``mean=True``).
+    ``mean`` tells a swing-up that reaches the top and falls back from one that never leaves the
+    bottom, which the robustness (the worst sample) scores alike: the race's last search design."""
     products: bool = False
     """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
     cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
@@ -324,7 +324,8 @@ class SearchRuns:
 
     ``judge(states, dt)`` returns the monitor's verdict on rollouts ``(B, N + 1, n)``: an object with
     ``satisfied``, ``robustness`` and ``violation_time`` ``(B,)`` (:func:`mitlc.monitor.monitor`'s
-    result). ``returns`` ``(runs, generations)``: each generation's best fitness per run.
+    result); with ``score=mean`` it is called as ``judge(states, dt, True)`` and gives ``mean_robustness``
+    too (``monitor(..., mean=True)``). ``returns`` ``(runs, generations)``: each generation's best fitness per run.
     :meth:`rollout` rolls row ``b`` out with run ``b % runs``. The runs are numbered from ``first``:
     run ``r`` draws only from streams of ``(seed, r)``, so its result does not depend on the runs beside it.
     """
@@ -335,7 +336,7 @@ class SearchRuns:
         runs: int,
         seed: int,
         settings: SearchSettings | None = None,
-        judge: Callable[[np.ndarray, float], Any] | None = None,
+        judge: Callable[..., Any] | None = None,
         first: int = 0,
     ) -> None:
         self.settings = settings or SearchSettings()
@@ -452,12 +453,14 @@ class SearchRuns:
                 cand = np.array([ask(r) for r in range(R)])  # (R, P, dim)
                 W = np.repeat(cand.reshape(R * P, self.n_features, self.n_inputs), S, axis=0)
                 states, _ = self._roll(W, self._starts(rngs, P, S))
-                verdict = self.judge(states, self.dt)
                 near = None
-                if st.score == "mean":
+                if st.score == "mean":  # the judge computes the averaged robustness only when asked
+                    verdict = self.judge(states, self.dt, True)
                     near = getattr(verdict, "mean_robustness", None)
                     if near is None:
                         raise TrainingError("the search's judge gave no averaged robustness (score=mean)")
+                else:
+                    verdict = self.judge(states, self.dt)
                 fit = scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near)
                 fit = fit.reshape(R, P, S).mean(axis=2)
                 if not np.all(np.isfinite(fit)):
