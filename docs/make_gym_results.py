@@ -91,6 +91,8 @@ def render(data: dict) -> str:
         "| --- | --- | --- | ---: | ---: | ---: |",
     ]
     for spec, trials, sets, what in TASKS:
+        means = {v: interval(data["specs"][spec][", ".join(v) if v else "defaults"]["success"])[0] for v in ((), sets)}
+        best = max(means, key=lambda v: (means[v], v == ()))  # in bold: the better row (the defaults on a tie)
         for variant in ((), sets):
             label = ", ".join(variant) if variant else "defaults"
             entry = data["specs"][spec][label]
@@ -98,7 +100,7 @@ def render(data: dict) -> str:
             m, h = interval(values)
             cmd = shlex.join(train_command(spec, trials, variant, 0, "OUT")).replace(" --no-plots", "")
             wall = sum(entry["wall_s"]) / len(entry["wall_s"])
-            mean = f"**{m:.2f} ± {h:.2f}**" if variant else f"{m:.2f} ± {h:.2f}"
+            mean = f"**{m:.2f} ± {h:.2f}**" if variant == best else f"{m:.2f} ± {h:.2f}"
             lines.append(
                 f"| `{spec}`: {what} | {label} | `{cmd}` | {' / '.join(f'{v:.2f}' for v in values)} | {mean} | "
                 f"{wall:.0f} |"
