@@ -296,7 +296,7 @@ def train_search_task(job: tuple) -> dict:
     wall = time.perf_counter() - t0
     judged = _judge(spec, agent.rollout(agent.evaluation_states()))
     failing = [str(f) for f in judged.failing if f is not None]
-    fresh = _judge(spec, agent.rollout(_fresh_starts(agent, FRESH, seed))).satisfied
+    fresh = _judge(spec, agent.rollout(_draw_fresh(agent, seed))).satisfied
     return {
         "job": f"{name} seed {seed}",
         "task": name,

@@ -988,19 +988,12 @@ def simulate(policy_dirs, spec_path, rollouts, seed, starts, plot_path, trace_pa
     n = rollouts or agent.runs
     if starts == "train":  # the states mitlc train judged on: the checkpoint's evaluation streams
         x0 = agent.evaluation_states()
-    elif agent.sim.settable:
-        x0 = _draw_starts(agent.init_ranges, n, seed)
-    else:  # a Gymnasium plant starts where its reset puts it: one seeded stream per rollout
-        x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
+        where = "each run's evaluation start, as mitlc train judged" + _trained_on(meta, spec)
+    else:
+        x0, where = _fresh_starts(agent, agent.sim.settable, n, seed)
     ro = agent.rollout(x0)
     res = _print_rollouts(spec, ro, x0, agent)
     k = int(res.satisfied.sum())
-    if starts == "train":
-        where = "each run's evaluation start, as mitlc train judged" + _trained_on(meta, spec)
-    elif agent.sim.settable:
-        where = f"fresh starts drawn from the initial set, seed {seed}"
-    else:
-        where = f"fresh resets of the environment, seed {seed}"
     click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
     if starts == "fresh" and spec.source == meta["spec_source"] and agent.trial > 0:
         judged = _judge(spec, agent.rollout(agent.evaluation_states())).satisfied
@@ -1045,6 +1038,15 @@ def _runs_learner(folder, kind: str):
     if agent is None:  # pragma: no cover - the caller saw metrics.json say sac; a folder changed since
         raise InputError("not a --learner sac training", file=str(folder))
     return agent
+
+
+def _fresh_starts(agent, settable: bool, n: int, seed: int) -> tuple[np.ndarray, str]:
+    """``n`` fresh starts for ``mitlc simulate`` and how they were drawn: from the init box, or (a plant that
+    cannot be set, a Gymnasium environment) where its reset puts it, one seeded stream per rollout."""
+    if settable:
+        return _draw_starts(agent.init_ranges, n, seed), f"fresh starts drawn from the initial set, seed {seed}"
+    x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
+    return x0, f"fresh resets of the environment, seed {seed}"
 
 
 def _draw_starts(init_ranges, n: int, seed: int) -> np.ndarray:
@@ -1132,25 +1134,16 @@ def _simulate_sac(folder, spec_path, rollouts, seed, starts, plot_path, trace_pa
             file="--rollouts",
         )
     n = rollouts or agent.runs
-    settable = getattr(agent, "settable", True)  # a search on a Gymnasium environment starts where its reset puts it
     if starts == "train":
         x0 = agent.evaluation_states()
-    elif settable:
-        x0 = _draw_starts(agent.init_ranges, n, seed)
-    else:
-        x0 = agent.sample_init([np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)])
+        where = "each run's evaluation start, as mitlc train judged" + (
+            "" if spec.source == trained.source else ", here by --spec"
+        )
+    else:  # a search on a Gymnasium environment starts where its reset puts it (SAC's runs are settable)
+        x0, where = _fresh_starts(agent, getattr(agent, "settable", True), n, seed)
     ro = agent.rollout(x0)
     res = _print_rollouts(spec, ro, x0, agent)
     k = int(res.satisfied.sum())
-    fresh = f"fresh starts drawn from the initial set, seed {seed}"
-    if not settable:
-        fresh = f"fresh resets of the environment, seed {seed}"
-    where = (
-        "each run's evaluation start, as mitlc train judged"
-        + ("" if spec.source == trained.source else ", here by --spec")
-        if starts == "train"
-        else fresh
-    )
     click.echo(f"{k}/{n} rollouts satisfy {spec.monitor_formula} ({where})")
     _write_traces(ro, agent.plant.state_names, trace_path, agent.plant)
     if plot_path is not None:

@@ -482,10 +482,9 @@ class SearchRuns:
     def evaluation_states(self) -> np.ndarray:
         """One initial state per run, drawn from the ``init`` box by run ``r``'s evaluation stream ``(seed, r, 1)``
         (an environment's copies reset from it)."""
-        ids = range(self.first, self.first + self.runs)
-        if self._sim is not None:
-            return np.asarray(self._sim.reset([np.random.default_rng([self.seed, r, 1]) for r in ids]))
-        return np.stack([self._draw(np.random.default_rng([self.seed, r, 1]), 1)[0] for r in ids])
+        return self.sample_init(
+            [np.random.default_rng([self.seed, r, 1]) for r in range(self.first, self.first + self.runs)]
+        )
 
     @property
     def runtime(self) -> Any:
