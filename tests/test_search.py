@@ -484,3 +484,28 @@ def test_spec_thresholds_of_one_variable_match_where_its_truth_flips() -> None:
     # 4096 samples of theta's box [-pi, pi): the two flips within a sample's width of -0.4 and 0.4
     assert len(theta) == 2 and np.all(np.abs(np.abs(theta) - 0.4) < 2 * np.pi / 4095)
     assert len(marks["x"]) == 2 and np.all(np.abs(np.sort(marks["x"]) - [1.4, 1.6]) < 5.0 / 4095)
+
+
+def test_runs_trained_in_forked_processes_are_the_runs_trained_in_one() -> None:
+    """workers = 2 splits the runs into two forked parts (at least MIN_PART_RUNS each): the same gains and
+    fitness to the bit, the progress reported up to the last generation, and a part's error raised as
+    one process raises it."""
+    from mitlc.learn.search import MIN_PART_RUNS
+
+    one, two = _runs(EASY, 2 * MIN_PART_RUNS, seed=4), _runs(EASY, 2 * MIN_PART_RUNS, seed=4)
+    two.workers = 2
+    seen: list[int] = []
+    one.train(5)
+    two.train(5, lambda g, n: seen.append(g))
+    np.testing.assert_array_equal(one.weights, two.weights)
+    np.testing.assert_array_equal(one.returns, two.returns)
+    assert seen == [1, 2, 3, 4, 5] and two.trial == 5
+
+    def failing(states: np.ndarray, dt: float, mean: bool = False):
+        raise TrainingError("the judge failed")
+
+    bad = SearchRuns(one.rs, 2 * MIN_PART_RUNS, 0, SearchSettings(), failing, workers=2)
+    with pytest.raises(TrainingError, match="the judge failed"):
+        bad.train(2)
+    with pytest.raises(InputError, match="workers must be at least 1"):
+        SearchRuns(one.rs, 2, 0, SearchSettings(), failing, workers=0)

@@ -328,6 +328,13 @@ def _outputs(
     is_flag=True,
     help="No progress on stderr (a bar on a terminal, else a line per 5 % of the trials).",
 )
+@click.option(
+    "--workers",
+    type=click.IntRange(1, 256),
+    default=None,
+    help="Processes the policy search's runs are trained in, its race designs and the runs after "
+    "(default: the cores this process may use, at most 8). The results do not depend on it.",
+)
 @plant_file_option
 @handle_errors
 def train(
@@ -355,6 +362,7 @@ def train(
     checkpoint_every,
     quiet,
     no_report,
+    workers,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
     from mitlc.cli.report import after_failed_training, after_training, live_curves
@@ -434,8 +442,19 @@ def train(
         options = CompileOptions.from_spec(
             spec, conjunction=conjunction, violations=violations, clock=clock, reward=reward
         )
-        trainer = _train_sac if learner == "sac" else _train_search
-        out = trainer(spec, compile_spec(spec, options), runs, trials, seed, out, assignments, quiet, no_plots)
+        rs_given = compile_spec(spec, options)
+        if learner == "sac":
+            if workers is not None:
+                raise InputError(
+                    "--workers trains the policy search's runs; SAC steps its own vector of environments",
+                    file="--workers",
+                )
+            out = _train_sac(spec, rs_given, runs, trials, seed, out, assignments, quiet, no_plots)
+        else:
+            from mitlc.learn.search import usable_cores
+
+            processes = usable_cores() if workers is None else workers
+            out = _train_search(spec, rs_given, runs, trials, seed, out, assignments, quiet, no_plots, processes)
         after_training(out, not (no_report or no_plots))
         return
     trials = TRIALS if trials is None else trials
@@ -454,14 +473,15 @@ def train(
     def build(st, r: int, s: int):
         return sacpn_learner(rs, st, r, s)
 
-    from mitlc.learn.search import SearchRuns, SearchSettings
+    from mitlc.learn.search import SearchRuns, SearchSettings, usable_cores
 
+    processes = usable_cores() if workers is None else workers
     given_sacpn = bool(assignments) or any(v is not None for v in (sigma, mask, saturation, penalty_ramp))
     searcher = None
     if learner is None and not given_sacpn and spec.plant is not None:
 
         def searcher(r: int, changes: dict):  # the race's search: runs 0 .. r - 1 of the training's own seed
-            return SearchRuns(rs, r, seed, SearchSettings(**changes), _monitor_judge(spec))
+            return SearchRuns(rs, r, seed, SearchSettings(**changes), _monitor_judge(spec), workers=processes)
 
     wall_before = 0.0
     raced: dict | None = None
@@ -511,7 +531,15 @@ def train(
                     if result.learner == "search":  # the search won: its race runs kept, the others searched now
                         kept = result.searched
                         rest = (
-                            SearchRuns(rs, runs - kept.runs, seed, kept.settings, kept.judge, first=kept.runs)
+                            SearchRuns(
+                                rs,
+                                runs - kept.runs,
+                                seed,
+                                kept.settings,
+                                kept.judge,
+                                first=kept.runs,
+                                workers=processes,
+                            )
                             if runs > kept.runs
                             else None
                         )
@@ -616,7 +644,7 @@ def _monitor_judge(spec):
     return judge
 
 
-def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots) -> Path:
+def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plots, workers=1) -> Path:
     """``mitlc train --learner search``: :class:`mitlc.learn.search.SearchRuns` into an output set
     (search.npz, metrics.json as SACPN's, the plots); Ctrl-C saves nothing (no checkpoint to resume)."""
     from mitlc.learn.search import SearchRuns, SearchSettings, default_generations
@@ -632,7 +660,7 @@ def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plot
             file="--learner",
         ) from None
     settings = SearchSettings(**parse_assignments(SearchSettings, assignments))
-    agent = SearchRuns(rs, runs, seed, settings, _monitor_judge(spec))
+    agent = SearchRuns(rs, runs, seed, settings, _monitor_judge(spec), workers=workers)
     trials = default_generations(agent.n_steps) if trials is None else trials
     outset = output_set(out, spec).open()
     try:

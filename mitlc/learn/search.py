@@ -73,6 +73,7 @@ from mitlc.petri.compile import RewardSystem
 from mitlc.plants.base import make_integrator, wrap_angle
 
 __all__ = [
+    "usable_cores",
     "SearchSettings",
     "SearchRuns",
     "SearchPolicy",
@@ -338,6 +339,7 @@ class SearchRuns:
         settings: SearchSettings | None = None,
         judge: Callable[..., Any] | None = None,
         first: int = 0,
+        workers: int = 1,
     ) -> None:
         self.settings = settings or SearchSettings()
         self.settings.check()
@@ -367,6 +369,10 @@ class SearchRuns:
         else:
             self._advance = make_integrator(ep.plant, ep.params)
         self._runtime: Any = None
+        self.workers = int(workers)
+        """Processes the runs are trained in (:meth:`train`): the results do not depend on it."""
+        if self.workers < 1:
+            raise InputError(f"workers must be at least 1, got {workers}", file="--workers")
 
     # ------------------------------------------------------------------ rolling out
     def _roll(self, weights: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -417,8 +423,86 @@ class SearchRuns:
         return self._sim.reset(gens)
 
     # ------------------------------------------------------------------ training
+    def _fitness(self, states: np.ndarray) -> np.ndarray:
+        """Each rollout's score (:func:`scores`) by the judge's verdict on rollouts ``states``."""
+        near, judge = None, self.judge
+        assert judge is not None  # train() refuses a search without one
+        if self.settings.score == "mean":  # the judge computes the averaged robustness only when asked
+            verdict = judge(states, self.dt, True)
+            near = getattr(verdict, "mean_robustness", None)
+            if near is None:
+                raise TrainingError("the search's judge gave no averaged robustness (score=mean)")
+        else:
+            verdict = judge(states, self.dt)
+        return scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near)
+
     def train(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
-        """``trials`` generations of every run's search; ``progress(done, total)`` after each."""
+        """``trials`` generations of every run's search; ``progress(done, total)`` after each.
+
+        With :attr:`workers` above 1 (and ``fork`` available: not on Windows), the runs are split into
+        that many contiguous parts (at most one per :data:`MIN_PART_RUNS` runs) trained at once in forked
+        processes, each part's runs exactly as alone (run ``r`` draws only from its own streams): the same
+        gains and fitness to the bit as one process, in less time on as many cores (``bench/bench_search.py
+        --workers``)."""
+        parts = min(int(self.workers), self.runs // MIN_PART_RUNS)
+        if parts > 1 and _fork_context() is not None:
+            self._train_forked(trials, progress, parts)
+        else:
+            self._train_runs(trials, progress)
+
+    def _part(self, a: int, b: int) -> SearchRuns:
+        """Runs ``a .. b - 1`` of these (numbered from :attr:`first`) as a search of their own."""
+        part = SearchRuns(self.rs, b - a, self.seed, self.settings, self.judge, self.first + a)
+        part.weights = self.weights[a:b].copy()
+        part.returns = self.returns[a:b].copy()
+        part.trial = self.trial
+        return part
+
+    def _train_forked(self, trials: int, progress: Callable[[int, int], None] | None, parts: int) -> None:
+        """:meth:`train` over ``parts`` forked processes (see there)."""
+        import signal
+        from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+
+        ctx = _fork_context()
+        assert ctx is not None
+        cuts = np.linspace(0, self.runs, parts + 1).round().astype(int)
+        done = ctx.Array("i", parts, lock=False)  # generations each part has finished, for the progress
+        global _FORKED
+        _FORKED = (self, cuts, done)
+        pool = ProcessPoolExecutor(
+            parts, mp_context=ctx, initializer=signal.signal, initargs=(signal.SIGINT, signal.SIG_IGN)
+        )
+        try:
+            futures = [pool.submit(_train_part, i, trials) for i in range(parts)]
+            shown = -1
+            while True:
+                finished, pending = wait(futures, timeout=0.2, return_when=FIRST_EXCEPTION)
+                now = min(done)
+                if progress is not None and now > shown:
+                    for g in range(shown + 1, now + 1):
+                        if g > 0:
+                            progress(g, trials)
+                    shown = now
+                if not pending or any(f.exception() is not None for f in finished):
+                    break
+            results = [f.result() for f in futures]  # raises a part's error, as one process would
+        except BaseException:
+            for proc in list(getattr(pool, "_processes", {}).values()):  # an error or an interrupt: stop them all
+                proc.terminate()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        finally:
+            _FORKED = None
+        pool.shutdown(wait=True)
+        if progress is not None:
+            for g in range(max(shown, 0) + 1, trials + 1):
+                progress(g, trials)
+        self.weights = np.concatenate([w for w, _ in results])
+        self.returns = np.concatenate([r for _, r in results])
+        self.trial += trials
+
+    def _train_runs(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
+        """:meth:`train` in this process."""
         try:
             import cma
         except ImportError:
@@ -453,16 +537,7 @@ class SearchRuns:
                 cand = np.array([ask(r) for r in range(R)])  # (R, P, dim)
                 W = np.repeat(cand.reshape(R * P, self.n_features, self.n_inputs), S, axis=0)
                 states, _ = self._roll(W, self._starts(rngs, P, S))
-                near = None
-                if st.score == "mean":  # the judge computes the averaged robustness only when asked
-                    verdict = self.judge(states, self.dt, True)
-                    near = getattr(verdict, "mean_robustness", None)
-                    if near is None:
-                        raise TrainingError("the search's judge gave no averaged robustness (score=mean)")
-                else:
-                    verdict = self.judge(states, self.dt)
-                fit = scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near)
-                fit = fit.reshape(R, P, S).mean(axis=2)
+                fit = self._fitness(states).reshape(R, P, S).mean(axis=2)
                 if not np.all(np.isfinite(fit)):
                     raise TrainingError(f"the policy search's fitness is not finite in generation {g + 1}")
                 for r in range(R):
@@ -560,6 +635,50 @@ class SearchRuns:
         buf = io.BytesIO()
         np.savez(buf, weights=self.weights, returns=self.returns, meta=np.array(json.dumps(meta)))
         return buf.getvalue()
+
+
+MIN_PART_RUNS = 4
+"""The fewest runs a forked part trains: a generation's numpy calls cost about a third of its time whatever
+the rows (cart-pole, 8 runs), so a part of fewer runs spends more on overhead than it saves."""
+MAX_WORKERS = 8
+"""The most processes :func:`usable_cores` suggests (each holds its own copy of the plant's batch)."""
+
+
+def usable_cores() -> int:
+    """The cores this process may run on, at most :data:`MAX_WORKERS`: ``mitlc train``'s default ``--workers``."""
+    import os
+
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(MAX_WORKERS, cores))
+
+
+_FORKED: Any = None
+"""The search a forked part trains a share of (:meth:`SearchRuns._train_forked`), inherited by fork."""
+
+
+def _fork_context() -> Any:
+    """multiprocessing's ``fork`` context, or None where there is none (Windows)."""
+    import multiprocessing
+
+    try:
+        return multiprocessing.get_context("fork")
+    except ValueError:  # pragma: no cover - not POSIX
+        return None
+
+
+def _train_part(i: int, trials: int) -> tuple[np.ndarray, np.ndarray]:
+    """In a forked process: part ``i`` of :data:`_FORKED`'s runs, trained; its gains and fitness."""
+    search, cuts, done = _FORKED
+    part = search._part(int(cuts[i]), int(cuts[i + 1]))
+
+    def tick(g: int, total: int) -> None:
+        done[i] = g
+
+    part._train_runs(trials, tick)
+    return part.weights, part.returns
 
 
 def _damaged(where: str, why: str) -> InputError:
