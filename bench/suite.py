@@ -97,6 +97,7 @@ def _fresh_starts(agent, n: int, seed: int) -> np.ndarray:
 def train_task(job: tuple) -> dict:
     """One training of one task, as ``mitlc train`` builds it; the record the page reads."""
     name, spec_path, seed, runs, trials, sets, options, *more = job
+    workers = int(more[1]) if len(more) > 1 else 1  # processes a search's runs are trained in (the same numbers)
     if more and more[0] == "sac":
         return train_sac_task(job)
     if more and more[0] == "search":
@@ -121,7 +122,7 @@ def train_task(job: tuple) -> dict:
     def searcher(
         r: int, changes: dict
     ):  # as mitlc train races the policy search: runs 0 .. r - 1 of the training's seed
-        return SearchRuns(rs, r, seed, SearchSettings(**changes), _monitor_judge(spec))
+        return SearchRuns(rs, r, seed, SearchSettings(**changes), _monitor_judge(spec), workers=workers)
 
     t0 = time.perf_counter()
     given = {a.split("=", 1)[0] for a in sets}
@@ -191,7 +192,9 @@ def _search_won(name, spec, raced, runs, trials, seed, sets, options, t0, race_s
     kept = raced.searched
     agent = kept
     if runs > kept.runs:
-        rest = SearchRuns(kept.rs, runs - kept.runs, seed, kept.settings, kept.judge, first=kept.runs)
+        rest = SearchRuns(
+            kept.rs, runs - kept.runs, seed, kept.settings, kept.judge, first=kept.runs, workers=kept.workers
+        )
         rest.train(raced.generations)
         agent = kept.joined(rest)
     wall = time.perf_counter() - t0
@@ -234,7 +237,7 @@ def _draw_fresh(agent, seed: int) -> np.ndarray:
 def train_sac_task(job: tuple) -> dict:
     """One training of one task as ``mitlc train --learner sac`` trains it (SAC run by run, no race;
     ``trials`` None: its default of about 20,000 samples per run); the record the page reads."""
-    name, spec_path, seed, runs, trials, sets, options, _ = job
+    name, spec_path, seed, runs, trials, sets, options, *_ = job
     from mitlc.cli.train import _draw_starts, _judge
     from mitlc.gym.sac import SacRuns, SacSettings, default_trials
     from mitlc.learn.settings import parse_assignments
@@ -275,7 +278,8 @@ def train_sac_task(job: tuple) -> dict:
 def train_search_task(job: tuple) -> dict:
     """One training of one task by :mod:`mitlc.learn.search` (CMA-ES over a time-varying linear
     feedback, judged by the monitor; ``trials`` None: its default generations); the record the page reads."""
-    name, spec_path, seed, runs, trials, sets, options, _ = job
+    name, spec_path, seed, runs, trials, sets, options, *more = job
+    workers = int(more[1]) if len(more) > 1 else 1
     from mitlc.cli.train import _judge
     from mitlc.learn.search import SearchRuns, SearchSettings, default_generations
     from mitlc.learn.settings import parse_assignments
@@ -289,7 +293,8 @@ def train_search_task(job: tuple) -> dict:
     def judge(states: np.ndarray, dt: float, mean: bool = False):
         return monitor(spec, states, dt, spec.monitor_formula, mean=mean)
 
-    agent = SearchRuns(rs, runs, seed, SearchSettings(**parse_assignments(SearchSettings, list(sets))), judge)
+    settings = SearchSettings(**parse_assignments(SearchSettings, list(sets)))
+    agent = SearchRuns(rs, runs, seed, settings, judge, workers=workers)
     trials = trials or default_generations(agent.n_steps)
     t0 = time.perf_counter()
     agent.train(trials)
@@ -353,9 +358,14 @@ def run(args: argparse.Namespace) -> dict:
         if skipped:
             print(f"--learner search: skipping {', '.join(skipped)} (Gymnasium environments)", flush=True)
         chosen = [t for t in chosen if t.name not in skipped]
-    jobs = [(t.name, str(t.spec_path), s, runs, trials, sets, options, args.learner) for t in chosen for s in seeds]
+    jobs = [
+        (t.name, str(t.spec_path), s, runs, trials, sets, options, args.learner, args.workers)
+        for t in chosen
+        for s in seeds
+    ]
     digest = code_digest(__file__)[:12]
     key = _change_key(sets, options, args.trials) + ("" if args.learner == "sacpn" else f"-{args.learner}")
+    key += f"-w{args.workers}" if args.workers > 1 else ""  # the same numbers, other wall times
     records, kept = run_cached(
         train_task,
         jobs,
@@ -571,6 +581,13 @@ def main(argv: list[str] | None = None) -> int:
         help="sac: train as mitlc train --learner sac does; search: mitlc.learn.search's CMA-ES policy search",
     )
     ap.add_argument("--jobs", type=int, default=2, help="trainings at once (default 2)")
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="processes a training's policy search runs in, as mitlc train --workers (default 1: the page's "
+        "wall times are a training's on one core beside another; --jobs 1 --workers 2 times each alone on 2 cores)",
+    )
     ap.add_argument("--results", type=Path, help="write the results here, not docs/suite.json and the page")
     ap.add_argument("--render", action="store_true", help="write the page again from docs/suite.json")
     args = ap.parse_args(argv)
