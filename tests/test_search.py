@@ -509,3 +509,20 @@ def test_runs_trained_in_forked_processes_are_the_runs_trained_in_one() -> None:
         bad.train(2)
     with pytest.raises(InputError, match="workers must be at least 1"):
         SearchRuns(one.rs, 2, 0, SearchSettings(), failing, workers=0)
+
+
+def test_a_forked_part_that_dies_is_one_line_naming_workers() -> None:
+    """A part's process killed mid-training (here: it exits at once) is a TrainingError that says so
+    and how to train in one process, not a traceback of the process pool."""
+    import os
+
+    from mitlc.learn.search import MIN_PART_RUNS
+
+    def dying(states: np.ndarray, dt: float, mean: bool = False):
+        os._exit(9)
+
+    spec = parse_spec(EASY)
+    bad = SearchRuns(compile_spec(spec), 2 * MIN_PART_RUNS, 0, SearchSettings(), dying, workers=2)
+    with pytest.raises(TrainingError, match="died") as err:
+        bad.train(2)
+    assert "--workers 1" in (err.value.hint or "")

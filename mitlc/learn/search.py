@@ -462,6 +462,7 @@ class SearchRuns:
         """:meth:`train` over ``parts`` forked processes (see there)."""
         import signal
         from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+        from concurrent.futures.process import BrokenProcessPool
 
         ctx = _fork_context()
         assert ctx is not None
@@ -486,10 +487,14 @@ class SearchRuns:
                 if not pending or any(f.exception() is not None for f in finished):
                     break
             results = [f.result() for f in futures]  # raises a part's error, as one process would
-        except BaseException:
-            for proc in list(getattr(pool, "_processes", {}).values()):  # an error or an interrupt: stop them all
-                proc.terminate()
-            pool.shutdown(wait=False, cancel_futures=True)
+        except BrokenProcessPool:
+            _stop(pool)
+            raise TrainingError(
+                "a process training the search's runs died (killed, or out of memory)",
+                hint="--workers 1 trains every run in this process",
+            ) from None
+        except BaseException:  # a part's error or an interrupt: stop them all
+            _stop(pool)
             raise
         finally:
             _FORKED = None
@@ -667,6 +672,13 @@ def _fork_context() -> Any:
         return multiprocessing.get_context("fork")
     except ValueError:  # pragma: no cover - not POSIX
         return None
+
+
+def _stop(pool: Any) -> None:
+    """Terminate a process pool's workers and shut it down without waiting for their tasks."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _train_part(i: int, trials: int) -> tuple[np.ndarray, np.ndarray]:
