@@ -5,7 +5,9 @@ time (the fused trial over one plant step and one spec's predicates) does not ha
 :func:`load` writes the plain-Python closure graph of a kernel as one generated module
 (:func:`module_source`): each function reached through a closure cell or a global becomes
 a module-level function under a unique name, numbers become literals, modules imports,
-and every function is compiled by numba with ``cache=True``. The file's name is the hash
+and every function is compiled by numba with ``cache=True`` (IEEE order, unless the plain
+function carries ``__mitlc_fastmath__``, the fastmath flags the fast kernel's sums are compiled
+with: :mod:`mitlc.learn.sacpn.simd`). The file's name is the hash
 of its text (and numba's and mitlc's versions), so a kernel is compiled the first time
 it is needed and loaded from the cache in every later process: trainings, sweep workers
 and Ray workers alike.
@@ -105,6 +107,14 @@ def _free_names(fn: ast.FunctionDef) -> tuple[set[str], list[str]]:
     return bound, list(dict.fromkeys(name for name in loads if name not in bound))
 
 
+def _flags(flags: Any) -> str:
+    """``fastmath={...}`` for a function's ``__mitlc_fastmath__`` (names of LLVM fast-math flags)."""
+    names = sorted(str(f) for f in flags)
+    if not names or not all(f.isidentifier() for f in names):
+        raise Unwritable(f"fastmath flags {names!r}")
+    return "fastmath={" + ", ".join(repr(f) for f in names) + "}"
+
+
 class _Writer:
     """Writes a closure graph as module source, one function or constant per unique name."""
 
@@ -187,7 +197,9 @@ class _Writer:
         node.name = own
         if isinstance(node.body[0], ast.Expr) and isinstance(getattr(node.body[0], "value", None), ast.Constant):
             node.body = node.body[1:] or [ast.Pass()]  # the docstring
-        self.functions.append(ast.unparse(node) + f"\n\n\n{own} = _jit({own})")
+        flags = getattr(fn, "__mitlc_fastmath__", None)  # a fast path's sums: these fastmath flags only
+        jit = "_jit" if flags is None else f"numba.njit({JIT_OPTIONS.replace('fastmath=False', _flags(flags))})"
+        self.functions.append(ast.unparse(node) + f"\n\n\n{own} = {jit}({own})")
         return own
 
 
