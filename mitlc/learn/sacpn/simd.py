@@ -1,0 +1,492 @@
+"""SACPN's fast trial kernel (``kernel = simd``): the exact kernel with its feature loops vectorised.
+
+The exact kernel (:mod:`mitlc.learn.sacpn.kernel`) keeps numpy's pairwise order in every sum and
+calls the C library's ``exp``, ``cos`` and ``sin``: scalar code, about 2 us per run-step on P1,
+most of it in the dot products over the features (each a product loop, then a pairwise sum) and
+in the RBF features (thirty ``exp`` and ``cos`` calls per sample). This kernel is the same loop
+(runs outer, steps inner, features innermost, one run's arrays in the first-level cache) with
+three changes, each one that the compiler can turn into vector instructions:
+
+* **the sums over features are reassociated**: the dot products ``w . phi`` and the features'
+  normalising sums are plain loops compiled with fastmath's ``reassoc`` (and ``nsz``) flags only,
+  so the compiler sums them in vector registers, blocks of features in parallel partial sums,
+  instead of numpy's pairwise order (:func:`sum_for`);
+* **exp and cos are this module's own** (:func:`exp_vec_for`, :func:`cos_vec_for`: range
+  reduction and Taylor polynomials in plain IEEE arithmetic, within 1 ulp of the C library's,
+  tested), called once per sample on all the kernels' arguments at once, since the C library's
+  are scalar calls that no loop vectorises;
+* the features' outer product is written forward into a second buffer (the exact kernel's is in
+  place from the end), which vectorises; the same products.
+
+Everything else is the exact kernel's, in the same order: the plant's step
+(:attr:`~mitlc.plants.base.Plant.kernel_step`, the C library's ``sin``), the predicates
+(:func:`~mitlc.runtime.atoms.compile_atoms`), the tables, the timed obligations' engine
+(:mod:`mitlc.runtime.obligation_kernel`) and the updates (plain loops, IEEE, no fused
+multiply-adds: only the sums above carry a fastmath flag).
+
+With ``exact_parts=True`` (for the tests) the sums are numpy's pairwise ones and exp and cos the
+C library's: the kernel then gives the exact kernel's numbers to the bit, which tests everything
+but those two changes. Without it (the fast path) a run's numbers differ from the exact kernel's
+in the last places of each sum, exp and cos, and like any such difference these grow as a training
+goes on: ``tests/test_simd.py`` bounds them against the numpy reference over whole trainings. A
+seed gives the same numbers every time on one machine, and a run's numbers do not depend on ``R``
+(each run goes through the same code); another machine's vector width may group the partial sums
+differently.
+
+Scope: that of the exact kernel (:func:`unsupported` gives its reasons).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from mitlc.learn.sacpn import kernel as fk
+from mitlc.plants.base import pairwise_sum_for
+from mitlc.runtime.obligation_kernel import no_obligations, obligation_kernel
+
+__all__ = ["REASSOC", "exp_vec_for", "cos_vec_for", "sum_for", "simd_trial_kernel", "unsupported"]
+
+REASSOC = frozenset({"reassoc", "nsz"})
+"""The fastmath flags of the fast path's sums (and only of them): reassociation (and the sign of a
+zero sum), which lets a loop's sum go in vector registers. No ``contract`` (fused multiply-adds),
+no approximate functions, no assumption that numbers are finite."""
+
+
+def jit_reassoc(fn: Callable) -> Callable:
+    """``fn`` compiled by numba as :func:`mitlc.learn.sacpn.kernel.jit` does, with :data:`REASSOC`."""
+    import numba
+
+    return numba.njit(fastmath=set(REASSOC), error_model="numpy", nogil=True)(fn)
+
+
+# ---------------------------------------------------------------- exp and cos, vectorisable
+
+_LOG2E = 1.4426950408889634
+_LN2 = Fraction(
+    "0.693147180559945309417232121458176568075500134360255254120680009493393621969694715605863326996418687542"
+)
+_PI = Fraction(
+    "3.14159265358979323846264338327950288419716939937510582097494459230781640628620899862803482534211706798"
+)
+
+
+def _split(x: Fraction, bits: int) -> float:
+    """``x`` rounded to ``bits`` significant bits (a multiple of it by a small integer is then exact)."""
+    e = math.floor(math.log2(x))
+    scale = Fraction(2) ** (bits - 1 - e)
+    return float(Fraction(round(x * scale)) / scale)
+
+
+_LN2_HI = _split(_LN2, 32)
+_LN2_LO = float(_LN2 - Fraction(_LN2_HI))
+_PIO2_1 = _split(_PI / 2, 33)
+_PIO2_2 = _split(_PI / 2 - Fraction(_PIO2_1), 33)
+_PIO2_3 = float(_PI / 2 - Fraction(_PIO2_1) - Fraction(_PIO2_2))
+_TWO_OVER_PI = float(2 / _PI)
+_MAGIC = 6755399441055744.0  # 1.5 * 2^52: kf + _MAGIC holds the integer kf in its low bits
+_MAGIC_BITS = 0x4338000000000000
+_E = [1.0 / math.factorial(i) for i in range(14)]  # exp's Taylor coefficients to y^13
+_S = [(-1.0) ** i / math.factorial(2 * i + 1) for i in range(8)]  # sin's, to y^15
+_C = [(-1.0) ** i / math.factorial(2 * i) for i in range(9)]  # cos's, to y^16
+
+
+def exp_vec_for(jit_fn: Callable) -> Callable:
+    """``exp_vec(a, lo, n, s1, s2, b1, b2)``: ``a[lo : lo + n] = exp(a[lo : lo + n])`` in place;
+    ``s1``, ``s2`` float64 scratch of at least ``n`` and ``b1``, ``b2`` their int64 views; compiled
+    by ``jit_fn``.
+
+    ``exp(t) = 2^k exp(y)``, ``k = round(t / ln 2)``, ``y = t - k ln 2`` (ln 2 in two parts, the first
+    with 32 bits, so ``k ln2_hi`` is exact), ``exp(y)`` by its Taylor polynomial to ``y^13`` (its
+    remainder under ``1e-17`` for ``|y| <= ln 2 / 2``), and ``2^k`` as two powers of two built in
+    their bits (so that results below ``2^-1022`` round as they should, down to 0). Within 1 ulp of
+    the C library's (tested); ``t`` is clamped to ``[-760, 710]``, past which exp is 0 or inf anyway."""
+    e0, e1, e2, e3, e4, e5, e6, e7, e8, e9, e10, e11, e12, e13 = _E
+    ln2_hi, ln2_lo, log2e, magic, magic_bits = _LN2_HI, _LN2_LO, _LOG2E, _MAGIC, _MAGIC_BITS
+
+    def exp_vec(a, lo, n, s1, s2, b1, b2):
+        for q in range(n):
+            r = lo + q
+            t = np.minimum(np.maximum(a[r], -760.0), 710.0)
+            kf = np.floor(t * log2e + 0.5)
+            kf = 0.0 if kf != kf else kf  # NaN: NaN from the polynomial, any finite k
+            y = (t - kf * ln2_hi) - kf * ln2_lo
+            p = e13
+            p = p * y + e12
+            p = p * y + e11
+            p = p * y + e10
+            p = p * y + e9
+            p = p * y + e8
+            p = p * y + e7
+            p = p * y + e6
+            p = p * y + e5
+            p = p * y + e4
+            p = p * y + e3
+            p = p * y + e2
+            p = p * y + e1
+            p = p * y + e0
+            a[r] = p
+            k1 = np.floor(kf * 0.5)
+            s1[q] = k1 + magic
+            s2[q] = (kf - k1) + magic
+        for q in range(n):  # 2^k1, 2^k2 (each in [-548, 512])
+            b1[q] = (b1[q] - magic_bits + 1023) << 52
+            b2[q] = (b2[q] - magic_bits + 1023) << 52
+        for q in range(n):
+            a[lo + q] = (a[lo + q] * s1[q]) * s2[q]
+
+    return jit_fn(exp_vec)
+
+
+def cos_vec_for(jit_fn: Callable) -> Callable:
+    """``cos_vec(a, lo, n)``: ``a[lo : lo + n] = cos(a[lo : lo + n])`` in place; compiled by ``jit_fn``.
+
+    ``x = y + j pi/2`` (pi/2 in three parts, the first two with 33 bits: exact products for
+    ``|j| < 2^20``), then ``cos`` or ``sin`` of ``y`` (``|y| <= pi/4``) by Taylor polynomials to
+    ``y^16`` and ``y^15``, chosen and signed by ``j mod 4`` without a branch. Within 1 ulp of the
+    C library's near the features' angles (tested on ``[-100, 100]``)."""
+    s1, s2, s3, s4, s5, s6, s7 = _S[1:]
+    c2, c3, c4, c5, c6, c7, c8 = _C[2:]
+    p1, p2, p3, two_over_pi = _PIO2_1, _PIO2_2, _PIO2_3, _TWO_OVER_PI
+
+    def cos_vec(a, lo, n):
+        for q in range(n):
+            r = lo + q
+            x = a[r]
+            j = np.floor(x * two_over_pi + 0.5)
+            y = ((x - j * p1) - j * p2) - j * p3
+            q = j - 4.0 * np.floor(j * 0.25)
+            z = y * y
+            sp = s7
+            sp = sp * z + s6
+            sp = sp * z + s5
+            sp = sp * z + s4
+            sp = sp * z + s3
+            sp = sp * z + s2
+            sp = sp * z + s1
+            sn = y + y * z * sp
+            cp = c8
+            cp = cp * z + c7
+            cp = cp * z + c6
+            cp = cp * z + c5
+            cp = cp * z + c4
+            cp = cp * z + c3
+            cp = cp * z + c2
+            cs = 1.0 - (0.5 * z - z * z * cp)
+            v = sn if (q == 1.0 or q == 3.0) else cs
+            a[r] = -v if (q == 1.0 or q == 2.0) else v
+
+    return jit_fn(cos_vec)
+
+
+# ---------------------------------------------------------------- sums over features
+
+
+def sum_for(jit_fn: Callable, exact: bool) -> tuple[Callable, Callable, Callable]:
+    """``(dot, dot_in, total)``: ``dot(w, row, phi, F, prod)`` is ``sum_f w[row, f] phi[f]``,
+    ``dot_in(w, row, i, phi, F, prod)`` is ``sum_f w[row, i, f] phi[f]`` and
+    ``total(a, lo, n, prod)`` is ``sum_j a[lo + j]``, ``j < n``. ``exact``: in numpy's pairwise
+    order, the products rounded first (the exact kernel's sums, ``prod`` their scratch); else
+    plain loops whose sums the compiler may
+    reassociate (:data:`REASSOC`: compiled so where ``jit_fn`` is numba's, and marked so for
+    :mod:`mitlc.learn.jitcache` where it is the identity)."""
+    if exact:
+        psum = pairwise_sum_for(jit_fn)
+
+        def dot_exact(w, row, phi, F, prod):
+            for f in range(F):
+                prod[f] = w[row, f] * phi[f]
+            return psum(prod, 0, F)
+
+        def dot_in_exact(w, row, i, phi, F, prod):
+            for f in range(F):
+                prod[f] = w[row, i, f] * phi[f]
+            return psum(prod, 0, F)
+
+        def total_exact(a, lo, n, prod):
+            return psum(a, lo, n)
+
+        return jit_fn(dot_exact), jit_fn(dot_in_exact), jit_fn(total_exact)
+
+    def dot(w, row, phi, F, prod):
+        s = 0.0
+        for f in range(F):
+            s += w[row, f] * phi[f]
+        return s
+
+    def dot_in(w, row, i, phi, F, prod):
+        s = 0.0
+        for f in range(F):
+            s += w[row, i, f] * phi[f]
+        return s
+
+    def total(a, lo, n, prod):
+        s = 0.0
+        for j in range(lo, lo + n):
+            s += a[j]
+        return s
+
+    out = []
+    for fn in (dot, dot_in, total):
+        setattr(fn, "__mitlc_fastmath__", REASSOC)  # noqa: B010 (an attribute functions do not declare)
+        out.append(jit_reassoc(fn) if jit_fn is fk.jit else jit_fn(fn))
+    return out[0], out[1], out[2]
+
+
+# ---------------------------------------------------------------- the trial
+
+
+def simd_trial_kernel(
+    plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool, timed: bool, exact_parts: bool = False
+) -> Callable:
+    """The trial of :func:`mitlc.learn.sacpn.kernel.trial_kernel` (the same arguments, the same
+    effect on them) with its feature loops vectorised; ``exact_parts``: with numpy's pairwise sums
+    and the C library's exp and cos (then the exact kernel's numbers to the bit: the test of
+    everything else), else the fast path's."""
+    psum = pairwise_sum_for(jit_fn)
+    dot1, dot1_in, total = sum_for(jit_fn, exact_parts)
+    obligations = obligation_kernel(jit_fn) if timed else jit_fn(no_obligations)
+    if exact_parts:
+
+        def exp_libm(a, lo, n, s1, s2, b1, b2):
+            for r in range(lo, lo + n):
+                a[r] = np.exp(a[r])
+
+        def cos_libm(a, lo, n):
+            for r in range(lo, lo + n):
+                a[r] = np.cos(a[r])
+
+        exp_v, cos_v = jit_fn(exp_libm), jit_fn(cos_libm)
+    else:
+        exp_v, cos_v = exp_vec_for(jit_fn), cos_vec_for(jit_fn)
+    if one_input:
+        scalar_step = plant_step
+
+        def step_one(x, u, c, w):
+            scalar_step(x, u[0], c, w)
+
+        plant_step = jit_fn(step_one)
+
+    def rbf(x, counts, periodic, lo, hi, k, centres, arg, s1, s2, b1, b2, phi, tmp, prod):
+        # every axis's kernel arguments into arg, one exp over them all, then per axis the
+        # normalisation and the outer product (the exact kernel's operations per entry)
+        off = 0
+        for i in range(counts.shape[0]):
+            n = counts[i]
+            if n == 1:
+                continue
+            z = x[i]
+            if periodic[i]:  # exp(2k cos(z - c) - 2k)
+                for j in range(n):
+                    arg[off + j] = z - centres[i, j]
+                cos_v(arg, off, n)
+                k2 = 2.0 * k[i]
+                for j in range(off, off + n):
+                    arg[j] = arg[j] * k2 - k2
+            else:  # exp(-k (z - c)^2), z clipped
+                zi = np.minimum(np.maximum(z, lo[i]), hi[i])
+                mk = -k[i]
+                for j in range(n):
+                    d = zi - centres[i, j]
+                    arg[off + j] = d * mk * d
+            off += n
+        exp_v(arg, 0, off, s1, s2, b1, b2)
+        size = 1
+        phi[0] = 1.0
+        off = 0
+        for i in range(counts.shape[0]):
+            n = counts[i]
+            if n == 1:
+                continue
+            s = total(arg, off, n, prod)
+            for j in range(off, off + n):
+                arg[j] = arg[j] / s
+            if size == 1:
+                for j in range(n):
+                    phi[j] = arg[off + j]
+            else:  # phi[a n + b] = phi[a] g[b]
+                t = 0
+                for a in range(size):
+                    pa = phi[a]
+                    for b in range(off, off + n):
+                        tmp[t] = pa * arg[b]
+                        t += 1
+                for t in range(size * n):
+                    phi[t] = tmp[t]
+            size *= n
+            off += n
+
+    rbf_j = jit_fn(rbf)
+
+    def dot(w, rows, code, K, phi, F, prod, tk):
+        # sum over the K marked rows of w . phi, the sum over rows pairwise (as the exact kernel's)
+        for j in range(K):
+            tk[j] = dot1(w, rows[code, j], phi, F, prod)
+        return psum(tk, 0, K)
+
+    def dot_in(w, i, rows, code, K, phi, F, prod, tk):  # the same for input i's actor rows
+        for j in range(K):
+            tk[j] = dot1_in(w, rows[code, j], i, phi, F, prod)
+        return psum(tk, 0, K)
+
+    dot_j, dot_in_j = jit_fn(dot), jit_fn(dot_in)
+
+    def trial(
+        X,
+        noise,
+        code0,
+        xi,
+        theta,
+        ret,
+        next_code,
+        clock,
+        reward_tab,
+        reward_full,
+        marked,
+        marked_c,
+        pen,
+        pen_left,
+        pc,
+        nwork,
+        counts,
+        periodic,
+        lo,
+        hi,
+        kw,
+        centres,
+        gamma,
+        gl,
+        a_c,
+        a_a,
+        u_lo,
+        u_hi,
+        inv_k,
+        inv_kc,
+        current,
+        applied,
+        bootstrap,
+        known,
+        full,
+        o_nodes,
+        o_truth,
+        o_temporal,
+        o_mem,
+        o_regs,
+        timed,
+    ):
+        R, P, m, F = xi.shape[0], xi.shape[1], xi.shape[2], xi.shape[3]
+        N = noise.shape[0]
+        K, KC = marked.shape[1], marked_c.shape[1]
+        phi = np.empty(F)
+        phi_next = np.empty(F)
+        prod = np.empty(max(F, centres.shape[1]))
+        tmp = np.empty(F)
+        tk = np.empty(max(K, KC))
+        n_arg = centres.shape[0] * centres.shape[1]
+        arg = np.empty(n_arg)
+        s1, s2 = np.empty(n_arg), np.empty(n_arg)
+        b1, b2 = s1.view(np.int64), s2.view(np.int64)
+        w = np.empty(nwork)
+        e = np.empty((P, F)) if current else np.empty((1, F))
+        u, u_sat, a, du, coef = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+        for r in range(R):
+            x = X[r]
+            xr, th = xi[r], theta[r]
+            e[:, :] = 0.0
+            scale = 1.0
+            code = code0[r]
+            if timed:  # the obligations start on the first sample: their tokens' places in code
+                ac = atoms(x)
+                code = obligations(0, ac, code, o_nodes, o_truth, o_temporal, o_mem, o_regs)
+            rbf_j(x, counts, periodic, lo, hi, kw, centres, arg, s1, s2, b1, b2, phi, tmp, prod)
+            for i in range(m):
+                u[i] = dot_in_j(xr, i, marked, code, K, phi, F, prod, tk) * inv_k
+            for k in range(N):
+                # act: u_k = pi(x_k) + du_k, each input saturated to its box
+                for i in range(m):
+                    nz = noise[k, r, i]
+                    if applied:
+                        u_sat[i] = np.maximum(np.minimum(u[i], u_hi[i]), u_lo[i])
+                        a[i] = np.maximum(np.minimum(u_sat[i] + nz, u_hi[i]), u_lo[i])
+                        du[i] = a[i] - u_sat[i]
+                    else:
+                        u_sat[i] = u[i]
+                        a[i] = u[i] + nz
+                        du[i] = nz
+                # the plant and the net move
+                plant_step(x, a, pc, w)
+                ac = atoms(x)
+                code1 = next_code[clock[k], code, ac]
+                if timed:  # NetRuntime.advance_code: the obligations' tokens, which the tables keep
+                    code1 = obligations(k + 1, ac, code1, o_nodes, o_truth, o_temporal, o_mem, o_regs)
+                rew = reward_tab[code, code1]
+                ret[r] += rew if full else reward_full[code, code1]
+                rbf_j(x, counts, periodic, lo, hi, kw, centres, arg, s1, s2, b1, b2, phi_next, tmp, prod)
+                # TD error with Theta_k
+                delta = dot_j(th, marked_c, code, KC, phi, F, prod, tk) * -inv_kc
+                delta += rew
+                if bootstrap or k < N - 1:
+                    delta += dot_j(th, marked_c, code1, KC, phi_next, F, prod, tk) * (gamma * inv_kc)
+                if known:
+                    delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
+                # actor, per input
+                for i in range(m):
+                    coef[i] = delta * du[i]
+                    if applied:
+                        over = (u[i] - u_sat[i]) * coef[i]
+                        coef[i] *= 1.0 if over <= 0.0 else 0.0
+                # critic
+                scale *= gl
+                if scale < 1e-100:
+                    for i in range(e.shape[0]):
+                        for f in range(F):
+                            e[i, f] *= scale
+                    scale = 1.0
+                if current:
+                    for i in range(m):
+                        c_i = coef[i] * (a_a * inv_k)
+                        for j in range(K):
+                            row = marked[code, j]
+                            for f in range(F):
+                                xr[row, i, f] += c_i * phi[f]
+                    c_e = inv_kc / scale
+                    for j in range(KC):
+                        row = marked_c[code, j]
+                        for f in range(F):
+                            e[row, f] += c_e * phi[f]
+                    sv = delta * (a_c * scale)
+                    for i in range(P):
+                        for f in range(F):
+                            th[i, f] += e[i, f] * sv
+                else:
+                    for i in range(m):
+                        c_i = coef[i] * a_a
+                        for j in range(K):
+                            row = marked[code1, j]
+                            for f in range(F):
+                                xr[row, i, f] += c_i * phi[f]
+                    c_e = 1.0 / scale
+                    for f in range(F):
+                        e[0, f] += phi[f] * c_e
+                    sv = delta * (a_c * scale)
+                    for j in range(KC):
+                        row = marked_c[code1, j]
+                        for f in range(F):
+                            th[row, f] += e[0, f] * sv
+                # next policy output with Xi_k+1
+                code = code1
+                phi, phi_next = phi_next, phi
+                for i in range(m):
+                    u[i] = dot_in_j(xr, i, marked, code, K, phi, F, prod, tk) * inv_k
+
+    return jit_fn(trial)
+
+
+def unsupported(agent: Any) -> str | None:
+    """Why the fast kernel cannot train ``agent``, or None: the exact kernel's reasons
+    (:func:`mitlc.learn.sacpn.kernel.unsupported`), no more."""
+    return fk.unsupported(agent)
