@@ -187,18 +187,23 @@ def test_fast_path_is_deterministic_and_a_run_does_not_depend_on_R() -> None:
 
 
 def test_fast_path_compiles_its_sums_with_reassociation_only() -> None:
-    """The disk cache writes the sums with fastmath's reassoc and nsz flags, and every other function
-    in IEEE order (the same options as the exact kernel's)."""
+    """The disk cache writes the three sums with fastmath's reassoc and nsz flags, the leaf functions
+    (which allocate nothing) without reference counts, and every other function as the exact
+    kernel's (IEEE order)."""
     pytest.importorskip("numba")
     from mitlc.learn import jitcache
 
     agent = Sacpn(rs_of("pendulum/p1_swing_up"), SacpnSettings(kernel="numpy"), runs=1)
-    plain = agent.fused_trial(fk.identity, simd=True)
+    agent.fused_trial(fk.identity, simd=True)
     source, _ = jitcache.module_source(agent._kernel_fn, "test")
-    fast = [line for line in source.splitlines() if "fastmath={" in line]
-    assert len(fast) == 3 and all("fastmath={'nsz', 'reassoc'}" in line for line in fast)
-    assert source.count(" = _jit(") > 10
-    assert callable(plain)
+    lines = [line for line in source.splitlines() if not line.startswith("_jit = ")]  # the module's own _jit
+    jits = [line for line in lines if " = _jit(" in line or " = numba.njit(" in line]
+    sums = [line for line in jits if "fastmath={'nsz', 'reassoc'}" in line]
+    leaves = [line for line in jits if "fastmath=False" in line and "_nrt=False" in line]
+    assert len(sums) == 3 and all("_nrt=False" in line for line in sums)
+    assert len(leaves) == 5  # exp, cos, the features, the critic's and the actor's marked rows
+    assert "fastmath=True" not in source and "contract" not in source
+    assert len(jits) - len(sums) - len(leaves) == sum(" = _jit(" in line for line in jits) >= 5
 
 
 # ------------------------------------------------------------ the setting

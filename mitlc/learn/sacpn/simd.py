@@ -49,19 +49,44 @@ from mitlc.learn.sacpn import kernel as fk
 from mitlc.plants.base import pairwise_sum_for
 from mitlc.runtime.obligation_kernel import no_obligations, obligation_kernel
 
-__all__ = ["REASSOC", "exp_vec_for", "cos_vec_for", "sum_for", "simd_trial_kernel", "unsupported"]
+__all__ = [
+    "REASSOC",
+    "LEAF",
+    "SUMS",
+    "compile_leaf",
+    "exp_vec_for",
+    "cos_vec_for",
+    "sum_for",
+    "simd_trial_kernel",
+    "unsupported",
+]
 
 REASSOC = frozenset({"reassoc", "nsz"})
 """The fastmath flags of the fast path's sums (and only of them): reassociation (and the sign of a
 zero sum), which lets a loop's sum go in vector registers. No ``contract`` (fused multiply-adds),
 no approximate functions, no assumption that numbers are finite."""
 
+LEAF = {"_nrt": False}
+"""numba options of the fast path's leaf functions, which allocate nothing: no reference counting
+(numba's compiled functions count a reference to each array argument on entry and on exit, two
+atomic operations per array per call: more than the work of a short loop)."""
 
-def jit_reassoc(fn: Callable) -> Callable:
-    """``fn`` compiled by numba as :func:`mitlc.learn.sacpn.kernel.jit` does, with :data:`REASSOC`."""
+SUMS = {"fastmath": REASSOC, "_nrt": False}
+"""numba options of the fast path's sums: :data:`LEAF`'s, and :data:`REASSOC`."""
+
+
+def compile_leaf(jit_fn: Callable, fn: Callable, options: dict) -> Callable:
+    """``fn`` compiled by ``jit_fn`` with ``options`` (:data:`LEAF`, :data:`SUMS`) on top of
+    :func:`mitlc.learn.sacpn.kernel.jit`'s where ``jit_fn`` is that, and marked with them for
+    :mod:`mitlc.learn.jitcache` (``__mitlc_jit__``), which compiles the plain function graph."""
+    setattr(fn, "__mitlc_jit__", options)  # noqa: B010 (an attribute functions do not declare)
+    if jit_fn is not fk.jit:
+        return jit_fn(fn)
     import numba
 
-    return numba.njit(fastmath=set(REASSOC), error_model="numpy", nogil=True)(fn)
+    kw: dict[str, Any] = {"fastmath": False, "error_model": "numpy", "nogil": True}
+    kw.update({k: set(v) if k == "fastmath" else v for k, v in options.items()})
+    return numba.njit(**kw)(fn)
 
 
 # ---------------------------------------------------------------- exp and cos, vectorisable
@@ -139,7 +164,7 @@ def exp_vec_for(jit_fn: Callable) -> Callable:
         for q in range(n):
             a[lo + q] = (a[lo + q] * s1[q]) * s2[q]
 
-    return jit_fn(exp_vec)
+    return compile_leaf(jit_fn, exp_vec, LEAF)
 
 
 def cos_vec_for(jit_fn: Callable) -> Callable:
@@ -180,7 +205,7 @@ def cos_vec_for(jit_fn: Callable) -> Callable:
             v = sn if (q == 1.0 or q == 3.0) else cs
             a[r] = -v if (q == 1.0 or q == 2.0) else v
 
-    return jit_fn(cos_vec)
+    return compile_leaf(jit_fn, cos_vec, LEAF)
 
 
 # ---------------------------------------------------------------- sums over features
@@ -192,8 +217,7 @@ def sum_for(jit_fn: Callable, exact: bool) -> tuple[Callable, Callable, Callable
     ``total(a, lo, n, prod)`` is ``sum_j a[lo + j]``, ``j < n``. ``exact``: in numpy's pairwise
     order, the products rounded first (the exact kernel's sums, ``prod`` their scratch); else
     plain loops whose sums the compiler may
-    reassociate (:data:`REASSOC`: compiled so where ``jit_fn`` is numba's, and marked so for
-    :mod:`mitlc.learn.jitcache` where it is the identity)."""
+    reassociate (:data:`SUMS`, :func:`compile_leaf`)."""
     if exact:
         psum = pairwise_sum_for(jit_fn)
 
@@ -230,11 +254,7 @@ def sum_for(jit_fn: Callable, exact: bool) -> tuple[Callable, Callable, Callable
             s += a[j]
         return s
 
-    out = []
-    for fn in (dot, dot_in, total):
-        setattr(fn, "__mitlc_fastmath__", REASSOC)  # noqa: B010 (an attribute functions do not declare)
-        out.append(jit_reassoc(fn) if jit_fn is fk.jit else jit_fn(fn))
-    return out[0], out[1], out[2]
+    return compile_leaf(jit_fn, dot, SUMS), compile_leaf(jit_fn, dot_in, SUMS), compile_leaf(jit_fn, total, SUMS)
 
 
 # ---------------------------------------------------------------- the trial
@@ -247,7 +267,6 @@ def simd_trial_kernel(
     effect on them) with its feature loops vectorised; ``exact_parts``: with numpy's pairwise sums
     and the C library's exp and cos (then the exact kernel's numbers to the bit: the test of
     everything else), else the fast path's."""
-    psum = pairwise_sum_for(jit_fn)
     dot1, dot1_in, total = sum_for(jit_fn, exact_parts)
     obligations = obligation_kernel(jit_fn) if timed else jit_fn(no_obligations)
     if exact_parts:
@@ -320,20 +339,21 @@ def simd_trial_kernel(
             size *= n
             off += n
 
-    rbf_j = jit_fn(rbf)
+    leaf = (lambda fn: jit_fn(fn)) if exact_parts else (lambda fn: compile_leaf(jit_fn, fn, LEAF))
+    rbf_j = leaf(rbf)
 
     def dot(w, rows, code, K, phi, F, prod, tk):
-        # sum over the K marked rows of w . phi, the sum over rows pairwise (as the exact kernel's)
+        # sum over the K marked rows of w . phi, the sum over rows as total's (the exact: pairwise)
         for j in range(K):
             tk[j] = dot1(w, rows[code, j], phi, F, prod)
-        return psum(tk, 0, K)
+        return total(tk, 0, K, prod)
 
     def dot_in(w, i, rows, code, K, phi, F, prod, tk):  # the same for input i's actor rows
         for j in range(K):
             tk[j] = dot1_in(w, rows[code, j], i, phi, F, prod)
-        return psum(tk, 0, K)
+        return total(tk, 0, K, prod)
 
-    dot_j, dot_in_j = jit_fn(dot), jit_fn(dot_in)
+    dot_j, dot_in_j = leaf(dot), leaf(dot_in)
 
     def trial(
         X,
