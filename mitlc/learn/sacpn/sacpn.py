@@ -201,13 +201,17 @@ class SacpnSettings(Settings):
 
     kernel: str = "auto"
     """How a trial is computed: ``numpy`` (the reference: vectorised over the runs),
-    ``numba`` (the fused trial kernel of :mod:`mitlc.learn.sacpn.kernel`, compiled; needs
-    ``mitlc[fast]``), ``auto`` (numba when installed, else numpy). Both give the same
-    returns and parameters to the bit where numpy's float64 sin/cos/exp are the C
+    ``numba`` (the exact fused trial kernel of :mod:`mitlc.learn.sacpn.kernel`, compiled; needs
+    ``mitlc[fast]``), ``auto`` (numba when installed, else numpy), ``simd`` (the fast kernel of
+    :mod:`mitlc.learn.sacpn.simd`: the exact one with its sums over features reassociated and
+    its own exp and cos, so that they vectorise; needs ``mitlc[fast]``). numpy and numba give
+    the same returns and parameters to the bit where numpy's float64 sin/cos/exp are the C
     library's (x86-64 up to AVX2; on AVX-512 CPUs within about 1e-13, see
-    :mod:`mitlc.learn.sacpn.kernel`; tested); problems outside the kernel's scope
-    (environments, user plants without ``kernel_step``, untabulated rewards, timed
-    obligations with compact tables) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
+    :mod:`mitlc.learn.sacpn.kernel`; tested); ``simd`` is not exact: within 1e-9 of numpy after
+    five trials on the shipped specs (tested), and like any rounding difference this grows as a
+    training goes on. Problems outside the kernels' scope (environments, user plants without
+    ``kernel_step``, untabulated rewards, timed obligations with compact tables) train on numpy
+    whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
     @classmethod
     def thesis(cls) -> SacpnSettings:
@@ -523,8 +527,9 @@ class Sacpn:
         return self.xi.reshape(self.runs * self.n_places, self.n_inputs, self.n_features)
 
     def _choose_kernel(self) -> None:
-        """Pick the trial's path (``settings.kernel``): :attr:`kernel` is ``numpy`` or
-        ``numba``, :attr:`kernel_reason` why numpy where the fused kernel was not taken."""
+        """Pick the trial's path (``settings.kernel``): :attr:`kernel` is ``numpy``, ``numba`` or
+        ``simd``, :attr:`kernel_reason` why numpy where the fused kernel was not taken (and why not
+        the fast one where ``simd`` was asked for and the exact one trains)."""
         from mitlc.learn.sacpn import kernel as fk
         from mitlc.learn.sacpn import simd as sk
 

@@ -5,10 +5,10 @@ calls the C library's ``exp``, ``cos`` and ``sin``: scalar code, about 2 us per 
 most of it in the dot products over the features (each a product loop, then a pairwise sum) and
 in the RBF features (thirty ``exp`` and ``cos`` calls per sample). This kernel is the same loop
 (runs outer, steps inner, features innermost, one run's arrays in the first-level cache) with
-three changes, each one that the compiler can turn into vector instructions:
+three changes:
 
-* **the sums over features are reassociated**: the dot products ``w . phi`` and the features'
-  normalising sums are plain loops compiled with fastmath's ``reassoc`` (and ``nsz``) flags only,
+* **the sums are reassociated**: the dot products ``w . phi``, their sum over the marked rows and
+  the features' normalising sums are plain loops compiled with fastmath's ``reassoc`` (and ``nsz``) flags only,
   so the compiler sums them in vector registers, blocks of features in parallel partial sums,
   instead of numpy's pairwise order (:func:`sum_for`);
 * **exp and cos are this module's own** (:func:`exp_vec_for`, :func:`cos_vec_for`: range
@@ -16,9 +16,12 @@ three changes, each one that the compiler can turn into vector instructions:
   tested), called once per sample on all the kernels' arguments at once, since the C library's
   are scalar calls that no loop vectorises;
 * the features' outer product is written forward into a second buffer (the exact kernel's is in
-  place from the end), which vectorises; the same products.
+  place from the end): the same products.
 
-Everything else is the exact kernel's, in the same order: the plant's step
+The leaf functions (the features, the dots, the sums, exp and cos: none allocates) are compiled
+without numba's reference counting (:data:`LEAF`), which otherwise costs two atomic operations per
+array argument per call, more than a short loop's work. Everything else is the exact kernel's, in
+the same order: the plant's step
 (:attr:`~mitlc.plants.base.Plant.kernel_step`, the C library's ``sin``), the predicates
 (:func:`~mitlc.runtime.atoms.compile_atoms`), the tables, the timed obligations' engine
 (:mod:`mitlc.runtime.obligation_kernel`) and the updates (plain loops, IEEE, no fused
