@@ -6,7 +6,7 @@ So it is tested in three parts:
 
 * with ``exact_parts`` (numpy's pairwise sums, the C library's exp and cos) it must be the exact
   kernel **to the bit**: uncompiled (plain Python, no numba needed) on every spec kind and variant
-  of ``tests/test_kernel.py``, compiled on four;
+  of ``tests/test_kernel.py``, compiled on three (P4, N1, a mass-damper spec);
 * its exp and cos within **1 ulp** of the C library's;
 * the fast path itself against the numpy reference over a whole short training (``TRIALS`` trials
   of ``RUNS`` runs at the spec's horizon) on P1..P5, N2 and a nested spec: the parameters within
@@ -95,9 +95,7 @@ def test_uncompiled_simd_kernel_with_two_inputs(formula: str) -> None:
         same_as_exact(rs, SacpnSettings(kernel="numpy", **UNICYCLE_SMALL, **variant), fk.identity, trials=3)
 
 
-@pytest.mark.parametrize(
-    "name", ["pendulum/p1_swing_up", "pendulum/p4_alternate", "pendulum/n1_reach_in_time", SPECS[-1]]
-)
+@pytest.mark.parametrize("name", ["pendulum/p4_alternate", "pendulum/n1_reach_in_time", SPECS[-1]])
 def test_compiled_simd_kernel_with_exact_parts_is_the_exact_kernel(name: str) -> None:
     pytest.importorskip("numba")
     same_as_exact(rs_of(name), SacpnSettings(kernel="numpy"), fk.jit, trials=3)
