@@ -3,8 +3,10 @@
 The exact kernel (:mod:`mitlc.learn.sacpn.kernel`) keeps numpy's pairwise order in every sum and
 calls the C library's ``exp``, ``cos`` and ``sin``: scalar code, about 2 us per run-step on P1,
 most of it in the dot products over the features (each a product loop, then a pairwise sum) and
-in the RBF features (thirty ``exp`` and ``cos`` calls per sample). This kernel is the same loop
-(runs outer, steps inner, features innermost, one run's arrays in the first-level cache) with
+in the RBF features (thirty ``exp`` and ``cos`` calls per sample). This kernel is the same loop,
+:func:`mitlc.learn.sacpn.kernel.trial_kernel` itself (runs outer, steps inner, features innermost,
+one run's arrays in the first-level cache), given other parts (:func:`simd_parts`, its
+:class:`~mitlc.learn.sacpn.kernel.Parts`: the features and the sums over the marked rows), with
 three changes:
 
 * **the sums are reassociated**: the dot products ``w . phi``, their sum over the marked rows and
@@ -20,7 +22,7 @@ three changes:
 
 The leaf functions (the features, the dots, the sums, exp and cos: none allocates) are compiled
 without numba's reference counting (:data:`LEAF`), which otherwise costs two atomic operations per
-array argument per call, more than a short loop's work. Everything else is the exact kernel's, in
+array argument per call, more than a short loop's work. Everything else is the exact kernel's code,
 the same order: the plant's step
 (:attr:`~mitlc.plants.base.Plant.kernel_step`, the C library's ``sin``), the predicates
 (:func:`~mitlc.runtime.atoms.compile_atoms`), the tables, the timed obligations' engine
@@ -50,7 +52,6 @@ import numpy as np
 
 from mitlc.learn.sacpn import kernel as fk
 from mitlc.plants.base import pairwise_sum_for
-from mitlc.runtime.obligation_kernel import no_obligations, obligation_kernel
 
 __all__ = [
     "REASSOC",
@@ -60,6 +61,7 @@ __all__ = [
     "exp_vec_for",
     "cos_vec_for",
     "sum_for",
+    "simd_parts",
     "simd_trial_kernel",
     "unsupported",
 ]
@@ -217,7 +219,7 @@ def cos_vec_for(jit_fn: Callable) -> Callable:
 def sum_for(jit_fn: Callable, exact: bool) -> tuple[Callable, Callable, Callable]:
     """``(dot, dot_in, total)``: ``dot(w, row, phi, F, prod)`` is ``sum_f w[row, f] phi[f]``,
     ``dot_in(w, row, i, phi, F, prod)`` is ``sum_f w[row, i, f] phi[f]`` and
-    ``total(a, lo, n, prod)`` is ``sum_j a[lo + j]``, ``j < n``. ``exact``: in numpy's pairwise
+    ``total(a, lo, n)`` is ``sum_j a[lo + j]``, ``j < n``. ``exact``: in numpy's pairwise
     order, the products rounded first (the exact kernel's sums, ``prod`` their scratch); else
     plain loops whose sums the compiler may
     reassociate (:data:`SUMS`, :func:`compile_leaf`)."""
@@ -234,7 +236,7 @@ def sum_for(jit_fn: Callable, exact: bool) -> tuple[Callable, Callable, Callable
                 prod[f] = w[row, i, f] * phi[f]
             return psum(prod, 0, F)
 
-        def total_exact(a, lo, n, prod):
+        def total_exact(a, lo, n):
             return psum(a, lo, n)
 
         return jit_fn(dot_exact), jit_fn(dot_in_exact), jit_fn(total_exact)
@@ -251,7 +253,7 @@ def sum_for(jit_fn: Callable, exact: bool) -> tuple[Callable, Callable, Callable
             s += w[row, i, f] * phi[f]
         return s
 
-    def total(a, lo, n, prod):
+    def total(a, lo, n):
         s = 0.0
         for j in range(lo, lo + n):
             s += a[j]
@@ -263,15 +265,13 @@ def sum_for(jit_fn: Callable, exact: bool) -> tuple[Callable, Callable, Callable
 # ---------------------------------------------------------------- the trial
 
 
-def simd_trial_kernel(
-    plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool, timed: bool, exact_parts: bool = False
-) -> Callable:
-    """The trial of :func:`mitlc.learn.sacpn.kernel.trial_kernel` (the same arguments, the same
-    effect on them) with its feature loops vectorised; ``exact_parts``: with numpy's pairwise sums
-    and the C library's exp and cos (then the exact kernel's numbers to the bit: the test of
-    everything else), else the fast path's."""
+def simd_parts(jit_fn: Callable, exact_parts: bool = False) -> fk.Parts:
+    """The fast kernel's parts (:class:`mitlc.learn.sacpn.kernel.Parts`), compiled by ``jit_fn``: the
+    features with one exp over all the axes' kernels and the outer product written forward, and the
+    sums over the marked rows; ``exact_parts``: with numpy's pairwise sums and the C library's exp and
+    cos (then the exact kernel's numbers to the bit), else the fast path's (:func:`sum_for`,
+    :func:`exp_vec_for`, :func:`cos_vec_for`)."""
     dot1, dot1_in, total = sum_for(jit_fn, exact_parts)
-    obligations = obligation_kernel(jit_fn) if timed else jit_fn(no_obligations)
     if exact_parts:
 
         def exp_libm(a, lo, n, s1, s2, b1, b2):
@@ -285,17 +285,17 @@ def simd_trial_kernel(
         exp_v, cos_v = jit_fn(exp_libm), jit_fn(cos_libm)
     else:
         exp_v, cos_v = exp_vec_for(jit_fn), cos_vec_for(jit_fn)
-    if one_input:
-        scalar_step = plant_step
 
-        def step_one(x, u, c, w):
-            scalar_step(x, u[0], c, w)
+    def scratch(centres, F):
+        # the kernels' arguments (all axes, packed), exp's scratch and its int64 views, the outer product's
+        n = centres.shape[0] * centres.shape[1]
+        s1, s2 = np.empty(n), np.empty(n)
+        return np.empty(n), s1, s2, s1.view(np.int64), s2.view(np.int64), np.empty(F)
 
-        plant_step = jit_fn(step_one)
-
-    def rbf(x, counts, periodic, lo, hi, k, centres, arg, s1, s2, b1, b2, phi, tmp, prod):
+    def rbf(x, counts, periodic, lo, hi, k, centres, work, phi):
         # every axis's kernel arguments into arg, one exp over them all, then per axis the
         # normalisation and the outer product (the exact kernel's operations per entry)
+        arg, s1, s2, b1, b2, tmp = work
         off = 0
         for i in range(counts.shape[0]):
             n = counts[i]
@@ -324,7 +324,7 @@ def simd_trial_kernel(
             n = counts[i]
             if n == 1:
                 continue
-            s = total(arg, off, n, prod)
+            s = total(arg, off, n)
             for j in range(off, off + n):
                 arg[j] = arg[j] / s
             if size == 1:
@@ -342,171 +342,28 @@ def simd_trial_kernel(
             size *= n
             off += n
 
-    leaf = (lambda fn: jit_fn(fn)) if exact_parts else (lambda fn: compile_leaf(jit_fn, fn, LEAF))
-    rbf_j = leaf(rbf)
-
     def dot(w, rows, code, K, phi, F, prod, tk):
         # sum over the K marked rows of w . phi, the sum over rows as total's (the exact: pairwise)
         for j in range(K):
             tk[j] = dot1(w, rows[code, j], phi, F, prod)
-        return total(tk, 0, K, prod)
+        return total(tk, 0, K)
 
     def dot_in(w, i, rows, code, K, phi, F, prod, tk):  # the same for input i's actor rows
         for j in range(K):
             tk[j] = dot1_in(w, rows[code, j], i, phi, F, prod)
-        return total(tk, 0, K, prod)
+        return total(tk, 0, K)
 
-    dot_j, dot_in_j = leaf(dot), leaf(dot_in)
+    leaf = (lambda fn: jit_fn(fn)) if exact_parts else (lambda fn: compile_leaf(jit_fn, fn, LEAF))
+    return fk.Parts(jit_fn(scratch), leaf(rbf), leaf(dot), leaf(dot_in))
 
-    def trial(
-        X,
-        noise,
-        code0,
-        xi,
-        theta,
-        ret,
-        next_code,
-        clock,
-        reward_tab,
-        reward_full,
-        marked,
-        marked_c,
-        pen,
-        pen_left,
-        pc,
-        nwork,
-        counts,
-        periodic,
-        lo,
-        hi,
-        kw,
-        centres,
-        gamma,
-        gl,
-        a_c,
-        a_a,
-        u_lo,
-        u_hi,
-        inv_k,
-        inv_kc,
-        current,
-        applied,
-        bootstrap,
-        known,
-        full,
-        o_nodes,
-        o_truth,
-        o_temporal,
-        o_mem,
-        o_regs,
-        timed,
-    ):
-        R, P, m, F = xi.shape[0], xi.shape[1], xi.shape[2], xi.shape[3]
-        N = noise.shape[0]
-        K, KC = marked.shape[1], marked_c.shape[1]
-        phi = np.empty(F)
-        phi_next = np.empty(F)
-        prod = np.empty(max(F, centres.shape[1]))
-        tmp = np.empty(F)
-        tk = np.empty(max(K, KC))
-        n_arg = centres.shape[0] * centres.shape[1]
-        arg = np.empty(n_arg)
-        s1, s2 = np.empty(n_arg), np.empty(n_arg)
-        b1, b2 = s1.view(np.int64), s2.view(np.int64)
-        w = np.empty(nwork)
-        e = np.empty((P, F)) if current else np.empty((1, F))
-        u, u_sat, a, du, coef = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
-        for r in range(R):
-            x = X[r]
-            xr, th = xi[r], theta[r]
-            e[:, :] = 0.0
-            scale = 1.0
-            code = code0[r]
-            if timed:  # the obligations start on the first sample: their tokens' places in code
-                ac = atoms(x)
-                code = obligations(0, ac, code, o_nodes, o_truth, o_temporal, o_mem, o_regs)
-            rbf_j(x, counts, periodic, lo, hi, kw, centres, arg, s1, s2, b1, b2, phi, tmp, prod)
-            for i in range(m):
-                u[i] = dot_in_j(xr, i, marked, code, K, phi, F, prod, tk) * inv_k
-            for k in range(N):
-                # act: u_k = pi(x_k) + du_k, each input saturated to its box
-                for i in range(m):
-                    nz = noise[k, r, i]
-                    if applied:
-                        u_sat[i] = np.maximum(np.minimum(u[i], u_hi[i]), u_lo[i])
-                        a[i] = np.maximum(np.minimum(u_sat[i] + nz, u_hi[i]), u_lo[i])
-                        du[i] = a[i] - u_sat[i]
-                    else:
-                        u_sat[i] = u[i]
-                        a[i] = u[i] + nz
-                        du[i] = nz
-                # the plant and the net move
-                plant_step(x, a, pc, w)
-                ac = atoms(x)
-                code1 = next_code[clock[k], code, ac]
-                if timed:  # NetRuntime.advance_code: the obligations' tokens, which the tables keep
-                    code1 = obligations(k + 1, ac, code1, o_nodes, o_truth, o_temporal, o_mem, o_regs)
-                rew = reward_tab[code, code1]
-                ret[r] += rew if full else reward_full[code, code1]
-                rbf_j(x, counts, periodic, lo, hi, kw, centres, arg, s1, s2, b1, b2, phi_next, tmp, prod)
-                # TD error with Theta_k
-                delta = dot_j(th, marked_c, code, KC, phi, F, prod, tk) * -inv_kc
-                delta += rew
-                if bootstrap or k < N - 1:
-                    delta += dot_j(th, marked_c, code1, KC, phi_next, F, prod, tk) * (gamma * inv_kc)
-                if known:
-                    delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
-                # actor, per input
-                for i in range(m):
-                    coef[i] = delta * du[i]
-                    if applied:
-                        over = (u[i] - u_sat[i]) * coef[i]
-                        coef[i] *= 1.0 if over <= 0.0 else 0.0
-                # critic
-                scale *= gl
-                if scale < 1e-100:
-                    for i in range(e.shape[0]):
-                        for f in range(F):
-                            e[i, f] *= scale
-                    scale = 1.0
-                if current:
-                    for i in range(m):
-                        c_i = coef[i] * (a_a * inv_k)
-                        for j in range(K):
-                            row = marked[code, j]
-                            for f in range(F):
-                                xr[row, i, f] += c_i * phi[f]
-                    c_e = inv_kc / scale
-                    for j in range(KC):
-                        row = marked_c[code, j]
-                        for f in range(F):
-                            e[row, f] += c_e * phi[f]
-                    sv = delta * (a_c * scale)
-                    for i in range(P):
-                        for f in range(F):
-                            th[i, f] += e[i, f] * sv
-                else:
-                    for i in range(m):
-                        c_i = coef[i] * a_a
-                        for j in range(K):
-                            row = marked[code1, j]
-                            for f in range(F):
-                                xr[row, i, f] += c_i * phi[f]
-                    c_e = 1.0 / scale
-                    for f in range(F):
-                        e[0, f] += phi[f] * c_e
-                    sv = delta * (a_c * scale)
-                    for j in range(KC):
-                        row = marked_c[code1, j]
-                        for f in range(F):
-                            th[row, f] += e[0, f] * sv
-                # next policy output with Xi_k+1
-                code = code1
-                phi, phi_next = phi_next, phi
-                for i in range(m):
-                    u[i] = dot_in_j(xr, i, marked, code, K, phi, F, prod, tk) * inv_k
 
-    return jit_fn(trial)
+def simd_trial_kernel(
+    plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool, timed: bool, exact_parts: bool = False
+) -> Callable:
+    """The trial of :func:`mitlc.learn.sacpn.kernel.trial_kernel` (the same loop, the same arguments,
+    the same effect on them) with the fast kernel's parts (:func:`simd_parts`; ``exact_parts``: the
+    exact kernel's sums, exp and cos, then its numbers to the bit: the test of everything else)."""
+    return fk.trial_kernel(plant_step, atoms, jit_fn, one_input, timed, simd_parts(jit_fn, exact_parts))
 
 
 def unsupported(agent: Any) -> str | None:
