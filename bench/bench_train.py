@@ -16,8 +16,22 @@ permanent|counted`` it measures instead what the violation-aware reward costs
 the trainer (its penalty ramp, known penalty value and violation sub-nets):
 R = 30 with the option against R = 30 without it, in the same process.
 
-With ``--kernel`` it compares the numpy trial and the fused kernel (kernel = numba) in
-the same process on P1 and P4 at R = 1 and 30, and prints the kernel's scaling in R.
+With ``--kernel`` it compares the numpy trial, the exact fused kernel (kernel = numba) and the
+fast one (kernel = simd, :mod:`mitlc.learn.sacpn.simd`) in the same process on P1 and P4 at
+R = 1 and 30, and prints both kernels' scaling in R on P1 with their ratio. On a 2-core AVX-512
+Xeon with another process on the other core (the ratios moved between 0.7x and 2.2x from one run
+to the next), the second of two runs printed (run-steps/s; docs/training.md, "The fast kernel")::
+
+    p1 R=1  : numpy 12,767   exact 526,529  simd   711,752  simd / exact 1.35x
+    p1 R=30 : numpy 247,146  exact 796,559  simd 1,301,501  simd / exact 1.63x
+    p4 R=1  : numpy  9,232   exact 274,735  simd   341,615  simd / exact 1.24x
+    p4 R=30 : numpy 156,341  exact 676,915  simd   958,095  simd / exact 1.42x
+    scaling, p1: exact, fast, fast / exact
+      R=1    :  479,413    417,568   0.87x
+      R=10   :  504,717    931,864   1.85x
+      R=30   :  668,055  1,182,626   1.77x
+      R=100  :  700,392  1,017,068   1.45x
+      R=1000 :  575,374    814,643   1.42x
 
 With ``--nested`` it measures the specs with timed obligations (N1..N4, nested intervals) at
 R = 30: the numpy trial and the kernel under the standard clock (the obligations' engine in the
@@ -140,7 +154,7 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=40, help="trials timed for the batched trainer")
     ap.add_argument("--naive-trials", type=int, default=4, help="trials timed for the naive loop (3 runs)")
     ap.add_argument("--violations", default="off", choices=("off", "permanent", "counted"))
-    ap.add_argument("--kernel", action="store_true", help="numpy trial vs the fused numba kernel, P1 and P4")
+    ap.add_argument("--kernel", action="store_true", help="numpy trial vs the exact and the fast kernel, P1 and P4")
     ap.add_argument("--nested", action="store_true", help="N1..N4: clock standard (kernel, numpy) vs clock trial")
     args = ap.parse_args()
     if args.nested:
@@ -186,8 +200,9 @@ def main() -> None:
 
 
 def kernels(trials: int) -> None:
-    """The numpy trial against the fused kernel (kernel = numba) in this process, P1 and P4 at
-    R = 1 and 30, best of 3 each, and the kernel's scaling in R on P1 (printed, never asserted)."""
+    """The numpy trial, the exact kernel (kernel = numba) and the fast kernel (kernel = simd) in this
+    process, P1 and P4 at R = 1 and 30, best of 3 each, and both kernels' scaling in R on P1 with
+    their ratio (printed, never asserted)."""
     from mitlc.learn.sacpn.kernel import numba_available
 
     if not numba_available():
@@ -196,20 +211,25 @@ def kernels(trials: int) -> None:
     for problem in ("p1", "p4"):
         rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / SPECS[problem]))
         for runs in (1, 30):
-            t0 = time.perf_counter()
-            Sacpn(rs, SacpnSettings(kernel="numba"), runs=runs).train(1)  # compiles (once per process)
-            first = time.perf_counter() - t0
+            first = {}
+            for kernel in ("numba", "simd"):
+                t0 = time.perf_counter()
+                Sacpn(rs, SacpnSettings(kernel=kernel), runs=runs).train(1)  # compiles (once per process)
+                first[kernel] = time.perf_counter() - t0
             slow, ret_n = batched(rs, runs, max(2, trials // 10 if runs == 1 else trials // 4))
-            fast, _ = batched(rs, runs, trials * 5, kernel="numba")
+            exact, _ = batched(rs, runs, trials * 5, kernel="numba")
+            fast, _ = batched(rs, runs, trials * 5, kernel="simd")
             print(
-                f"{problem} R={runs:<3}: numpy {slow:12,.0f}  kernel {fast:12,.0f} run-steps/s  "
-                f"kernel / numpy {fast / slow:6.1f}x  (first trial with compile {first:.1f} s)"
+                f"{problem} R={runs:<3}: numpy {slow:10,.0f}  exact {exact:10,.0f}  simd {fast:10,.0f} run-steps/s  "
+                f"exact / numpy {exact / slow:5.1f}x  simd / exact {fast / exact:4.2f}x  "
+                f"(first trial with compile {first['numba']:.1f} s, {first['simd']:.1f} s)"
             )
     rs = compile_spec(load_spec(ROOT / "specs" / "pendulum" / SPECS["p1"]))
-    print("kernel scaling, p1:")
+    print("scaling, p1 (run-steps/s): exact kernel, fast kernel, fast / exact")
     for runs in (1, 10, 30, 100, 1000):
-        rate, _ = batched(rs, runs, max(2, 3000 // runs), kernel="numba")
-        print(f"  R={runs:<5}: {rate:12,.0f} run-steps/s")
+        exact, _ = batched(rs, runs, max(2, 3000 // runs), kernel="numba")
+        fast, _ = batched(rs, runs, max(2, 3000 // runs), kernel="simd")
+        print(f"  R={runs:<5}: {exact:12,.0f} {fast:12,.0f}   {fast / exact:4.2f}x")
 
 
 def nested(trials: int) -> None:

@@ -5,7 +5,9 @@ time (the fused trial over one plant step and one spec's predicates) does not ha
 :func:`load` writes the plain-Python closure graph of a kernel as one generated module
 (:func:`module_source`): each function reached through a closure cell or a global becomes
 a module-level function under a unique name, numbers become literals, modules imports,
-and every function is compiled by numba with ``cache=True``. The file's name is the hash
+and every function is compiled by numba with ``cache=True``, in IEEE order (unless the plain
+function carries ``__mitlc_jit__``, the options of the fast kernel's leaf functions: fastmath
+flags for its sums, no reference counts; :mod:`mitlc.learn.sacpn.simd`). The file's name is the hash
 of its text (and numba's and mitlc's versions), so a kernel is compiled the first time
 it is needed and loaded from the cache in every later process: trainings, sweep workers
 and Ray workers alike.
@@ -105,6 +107,23 @@ def _free_names(fn: ast.FunctionDef) -> tuple[set[str], list[str]]:
     return bound, list(dict.fromkeys(name for name in loads if name not in bound))
 
 
+def _options(options: Any) -> str:
+    """``numba.njit(...)`` for a function's ``__mitlc_jit__``: :data:`JIT_OPTIONS` with its ``fastmath``
+    (a set of LLVM fast-math flag names) and ``_nrt`` (False: no reference counts, for a function
+    that allocates nothing) as given."""
+    opts = dict(options)
+    flags = sorted(str(f) for f in opts.pop("fastmath", ()))
+    nrt = opts.pop("_nrt", True)
+    if opts or not all(f.isidentifier() for f in flags) or not isinstance(nrt, bool):
+        raise Unwritable(f"jit options {options!r}")
+    text = JIT_OPTIONS
+    if flags:
+        text = text.replace("fastmath=False", "fastmath={" + ", ".join(repr(f) for f in flags) + "}")
+    if not nrt:
+        text += ", _nrt=False"
+    return f"numba.njit({text})"
+
+
 class _Writer:
     """Writes a closure graph as module source, one function or constant per unique name."""
 
@@ -187,7 +206,9 @@ class _Writer:
         node.name = own
         if isinstance(node.body[0], ast.Expr) and isinstance(getattr(node.body[0], "value", None), ast.Constant):
             node.body = node.body[1:] or [ast.Pass()]  # the docstring
-        self.functions.append(ast.unparse(node) + f"\n\n\n{own} = _jit({own})")
+        options = getattr(fn, "__mitlc_jit__", None)  # a fast kernel's leaf functions: their own options
+        jit = "_jit" if options is None else _options(options)
+        self.functions.append(ast.unparse(node) + f"\n\n\n{own} = {jit}({own})")
         return own
 
 

@@ -47,14 +47,23 @@ the numpy path (:func:`unsupported` says why).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from mitlc.plants.base import pairwise_sum_for
 from mitlc.runtime.obligation_kernel import no_obligations, obligation_kernel
 
-__all__ = ["numba_available", "jit", "identity", "trial_kernel", "rbf_kernel", "unsupported"]
+__all__ = [
+    "numba_available",
+    "jit",
+    "identity",
+    "Parts",
+    "exact_parts",
+    "trial_kernel",
+    "rbf_kernel",
+    "unsupported",
+]
 
 
 def numba_available() -> bool:
@@ -123,10 +132,64 @@ def rbf_kernel(jit_fn: Callable) -> Callable:
     return jit_fn(rbf)
 
 
-def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool, timed: bool) -> Callable:
+class Parts(NamedTuple):
+    """What a fused trial computes its features and its sums over the marked rows with, compiled;
+    :func:`trial_kernel` is one loop over any such parts (:func:`exact_parts`, the exact kernel's;
+    :func:`mitlc.learn.sacpn.simd.simd_parts`, the fast kernel's), calling them as follows:
+
+    * ``scratch(centres, F)``: the features' scratch ``work``, allocated once per trial (any value
+      ``rbf`` takes: an array, a tuple of arrays);
+    * ``rbf(x, counts, periodic, lo, hi, k, centres, work, phi)``: the features of one state into
+      ``phi`` (:class:`~mitlc.learn.features.RbfFeatures`);
+    * ``dot(w, rows, code, K, phi, F, prod, tk)``: ``sum_j w[rows[code, j]] . phi`` over the ``K``
+      marked rows (``w`` ``(P, F)``: the critic's), ``prod`` ``(F,)`` and ``tk`` ``(>= K,)`` scratch;
+    * ``dot_in(w, i, rows, code, K, phi, F, prod, tk)``: the same for input ``i``'s rows of the
+      actor's ``w`` ``(P, m, F)``.
+    """
+
+    scratch: Callable
+    rbf: Callable
+    dot: Callable
+    dot_in: Callable
+
+
+def exact_parts(jit_fn: Callable) -> Parts:
+    """The exact kernel's parts (:class:`Parts`), compiled by ``jit_fn``: :func:`rbf_kernel`'s features
+    (the C library's exp and cos), and each dot product's products rounded, then summed in numpy's
+    pairwise order, as is the sum over the rows."""
+    psum = pairwise_sum_for(jit_fn)
+
+    def scratch(centres, F):
+        return np.empty(centres.shape)  # each axis's kernels (rbf_kernel's g)
+
+    def dot(w, rows, code, K, phi, F, prod, tk):
+        # sum over the K marked rows of w . phi, each sum and the sum over rows pairwise
+        for j in range(K):
+            row = rows[code, j]
+            for f in range(F):
+                prod[f] = w[row, f] * phi[f]
+            tk[j] = psum(prod, 0, F)
+        return psum(tk, 0, K)
+
+    def dot_in(w, i, rows, code, K, phi, F, prod, tk):  # the same over input i's actor rows
+        for j in range(K):
+            row = rows[code, j]
+            for f in range(F):
+                prod[f] = w[row, i, f] * phi[f]
+            tk[j] = psum(prod, 0, F)
+        return psum(tk, 0, K)
+
+    return Parts(jit_fn(scratch), rbf_kernel(jit_fn), jit_fn(dot), jit_fn(dot_in))
+
+
+def trial_kernel(
+    plant_step: Callable, atoms: Callable, jit_fn: Callable, one_input: bool, timed: bool, parts: Parts | None = None
+) -> Callable:
     """The fused trial for one plant step and one atom-code function, compiled by ``jit_fn``;
     ``one_input``: the plant has one input; ``timed``: for nets with timed obligations (else
-    their engine is left out: a shorter compile).
+    their engine is left out: a shorter compile); ``parts``: the features and the sums over the
+    marked rows (:class:`Parts`, compiled by ``jit_fn`` too), :func:`exact_parts` when None (the
+    exact kernel; :func:`mitlc.learn.sacpn.simd.simd_trial_kernel` passes the fast ones).
 
     ``trial(x, noise, code0, xi, theta, ret, next_code, clock, reward_tab, reward_full,
     marked, marked_c, pen, pen_left, pc, fc..., scalars, u_lo, u_hi, ..., flags, obligations...,
@@ -139,8 +202,7 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
     :meth:`~mitlc.runtime.NetRuntime.advance_code` moves them
     (:mod:`mitlc.runtime.obligation_kernel`; ``obligations...`` are its arrays).
     """
-    psum = pairwise_sum_for(jit_fn)
-    rbf = rbf_kernel(jit_fn)
+    scratch, rbf, dot, dot_in = exact_parts(jit_fn) if parts is None else parts
     obligations = obligation_kernel(jit_fn) if timed else jit_fn(no_obligations)
     if one_input:
         scalar_step = plant_step
@@ -149,17 +211,6 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
             scalar_step(x, u[0], c, w)
 
         plant_step = jit_fn(step_one)
-
-    def dot(w, rows, K, phi, F, prod, tk):
-        # sum over the K marked rows of w . phi, each sum and the sum over rows pairwise
-        for j in range(K):
-            row = rows[j]
-            for f in range(F):
-                prod[f] = w[row, f] * phi[f]
-            tk[j] = psum(prod, 0, F)
-        return psum(tk, 0, K)
-
-    dot_j = jit_fn(dot)
 
     def trial(
         X,
@@ -211,7 +262,7 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
         phi_next = np.empty(F)
         prod = np.empty(F)
         tk = np.empty(max(K, KC))
-        g = np.empty(centres.shape)
+        work = scratch(centres, F)
         w = np.empty(nwork)
         e = np.empty((P, F)) if current else np.empty((1, F))
         u, u_sat, a, du, coef = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
@@ -224,9 +275,9 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
             if timed:  # the obligations start on the first sample: their tokens' places in code
                 ac = atoms(x)
                 code = obligations(0, ac, code, o_nodes, o_truth, o_temporal, o_mem, o_regs)
-            rbf(x, counts, periodic, lo, hi, kw, centres, g, phi)
+            rbf(x, counts, periodic, lo, hi, kw, centres, work, phi)
             for i in range(m):
-                u[i] = dot_j(xr[:, i], marked[code], K, phi, F, prod, tk) * inv_k
+                u[i] = dot_in(xr, i, marked, code, K, phi, F, prod, tk) * inv_k
             for k in range(N):
                 # act: u_k = pi(x_k) + du_k, each input saturated to its box
                 for i in range(m):
@@ -247,12 +298,12 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
                     code1 = obligations(k + 1, ac, code1, o_nodes, o_truth, o_temporal, o_mem, o_regs)
                 rew = reward_tab[code, code1]
                 ret[r] += rew if full else reward_full[code, code1]
-                rbf(x, counts, periodic, lo, hi, kw, centres, g, phi_next)
+                rbf(x, counts, periodic, lo, hi, kw, centres, work, phi_next)
                 # TD error with Theta_k
-                delta = dot_j(th, marked_c[code], KC, phi, F, prod, tk) * -inv_kc
+                delta = dot(th, marked_c, code, KC, phi, F, prod, tk) * -inv_kc
                 delta += rew
                 if bootstrap or k < N - 1:
-                    delta += dot_j(th, marked_c[code1], KC, phi_next, F, prod, tk) * (gamma * inv_kc)
+                    delta += dot(th, marked_c, code1, KC, phi_next, F, prod, tk) * (gamma * inv_kc)
                 if known:
                     delta += pen[code] * pen_left[k] - (gamma * pen_left[k + 1]) * pen[code1]
                 # actor, per input
@@ -303,7 +354,7 @@ def trial_kernel(plant_step: Callable, atoms: Callable, jit_fn: Callable, one_in
                 code = code1
                 phi, phi_next = phi_next, phi
                 for i in range(m):
-                    u[i] = dot_j(xr[:, i], marked[code], K, phi, F, prod, tk) * inv_k
+                    u[i] = dot_in(xr, i, marked, code, K, phi, F, prod, tk) * inv_k
 
     return jit_fn(trial)
 

@@ -201,13 +201,17 @@ class SacpnSettings(Settings):
 
     kernel: str = "auto"
     """How a trial is computed: ``numpy`` (the reference: vectorised over the runs),
-    ``numba`` (the fused trial kernel of :mod:`mitlc.learn.sacpn.kernel`, compiled; needs
-    ``mitlc[fast]``), ``auto`` (numba when installed, else numpy). Both give the same
-    returns and parameters to the bit where numpy's float64 sin/cos/exp are the C
+    ``numba`` (the exact fused trial kernel of :mod:`mitlc.learn.sacpn.kernel`, compiled; needs
+    ``mitlc[fast]``), ``auto`` (numba when installed, else numpy), ``simd`` (the fast kernel of
+    :mod:`mitlc.learn.sacpn.simd`: the exact one with its sums over features reassociated and
+    its own exp and cos, so that they vectorise; needs ``mitlc[fast]``). numpy and numba give
+    the same returns and parameters to the bit where numpy's float64 sin/cos/exp are the C
     library's (x86-64 up to AVX2; on AVX-512 CPUs within about 1e-13, see
-    :mod:`mitlc.learn.sacpn.kernel`; tested); problems outside the kernel's scope
-    (environments, user plants without ``kernel_step``, untabulated rewards, timed
-    obligations with compact tables) train on numpy whatever this says (:attr:`Sacpn.kernel_reason`)."""
+    :mod:`mitlc.learn.sacpn.kernel`; tested); ``simd`` is not exact: within 1e-9 of numpy after
+    five trials on the shipped specs (tested), and like any rounding difference this grows as a
+    training goes on. Problems outside the kernels' scope (environments, user plants without
+    ``kernel_step``, untabulated rewards, timed obligations with compact tables) train on numpy
+    whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
     @classmethod
     def thesis(cls) -> SacpnSettings:
@@ -253,8 +257,8 @@ class SacpnSettings(Settings):
             raise TrainingError(f"unknown mask '{self.mask}' (current or next)")
         if self.saturation not in ("applied", "none"):
             raise TrainingError(f"unknown saturation '{self.saturation}' (applied or none)")
-        if self.kernel not in ("auto", "numpy", "numba"):
-            raise TrainingError(f"unknown kernel '{self.kernel}' (auto, numpy or numba)")
+        if self.kernel not in ("auto", "numpy", "numba", "simd"):
+            raise TrainingError(f"unknown kernel '{self.kernel}' (auto, numpy, numba or simd)")
         if self.feature_grid not in ("spec", "plant"):
             raise TrainingError(f"unknown feature_grid '{self.feature_grid}' (spec or plant)")
         if self.violation_value not in ("known", "learned"):
@@ -523,9 +527,11 @@ class Sacpn:
         return self.xi.reshape(self.runs * self.n_places, self.n_inputs, self.n_features)
 
     def _choose_kernel(self) -> None:
-        """Pick the trial's path (``settings.kernel``): :attr:`kernel` is ``numpy`` or
-        ``numba``, :attr:`kernel_reason` why numpy where the fused kernel was not taken."""
+        """Pick the trial's path (``settings.kernel``): :attr:`kernel` is ``numpy``, ``numba`` or
+        ``simd``, :attr:`kernel_reason` why numpy where the fused kernel was not taken (and why not
+        the fast one where ``simd`` was asked for and the exact one trains)."""
         from mitlc.learn.sacpn import kernel as fk
+        from mitlc.learn.sacpn import simd as sk
 
         want = self.settings.kernel
         self.kernel, self.kernel_reason = "numpy", "kernel = numpy" if want == "numpy" else None
@@ -533,34 +539,52 @@ class Sacpn:
         if want == "numpy":
             return
         if not fk.numba_available():
-            if want == "numba":
-                raise TrainingError("kernel = numba needs numba", hint="pip install 'mitlc[fast]', or kernel = auto")
+            if want in ("numba", "simd"):
+                raise TrainingError(f"kernel = {want} needs numba", hint="pip install 'mitlc[fast]', or kernel = auto")
             self.kernel_reason = "numba is not installed"
             return
+        if want == "simd":
+            why = sk.unsupported(self)
+            if why is None:
+                self._fused = self.fused_trial(fk.jit, simd=True)
+                self.kernel = "simd"
+                return
+            self.kernel_reason = f"kernel = simd cannot: {why}"
         why = fk.unsupported(self)
         if why is not None:
-            self.kernel_reason = why
+            self.kernel_reason = why if self.kernel_reason is None else f"{self.kernel_reason}; nor the exact kernel"
             return
         self._fused = self.fused_trial(fk.jit)
         self.kernel = "numba"
 
-    def fused_trial(self, jit: Callable) -> Callable[[], np.ndarray]:
+    def fused_trial(self, jit: Callable, simd: bool = False, exact_parts: bool = False) -> Callable[[], np.ndarray]:
         """One trial by the fused kernel (:mod:`mitlc.learn.sacpn.kernel`) compiled by ``jit`` (the
         identity runs it as plain Python: the test that it is :meth:`_trial_numpy`, bit for bit).
-        Compiled kernels are kept per plant step and predicates for the process."""
+        ``simd``: by the fast kernel (:mod:`mitlc.learn.sacpn.simd`, ``kernel = simd``), with
+        ``exact_parts`` the exact kernel's sums, exp and cos (its test). Compiled kernels are kept
+        per plant step and predicates for the process."""
         from mitlc.learn.sacpn import kernel as fk
+        from mitlc.learn.sacpn import simd as sk
 
         plant, rt = self.plant, self.runtime
         assert plant.kernel_step is not None and rt.tables is not None and rt.tables.reward is not None
         plain_step, pc, nwork = plant.kernel_step(plant, self.params, fk.identity)  # pc, nwork: whatever jit
         one = self.n_inputs == 1
         timed = bool(rt.timed)  # the obligations' engine is compiled in only where the net has some
-        key = (jit, plant.name, plant.kernel_step, len(plant.state), one, atom_source(rt.preds, rt.columns), timed)
+
+        def build(step: Callable, atoms: Callable, jit_fn: Callable) -> Callable:
+            if simd:
+                return sk.simd_trial_kernel(step, atoms, jit_fn, one, timed, exact_parts)
+            return fk.trial_kernel(step, atoms, jit_fn, one, timed)
+
+        kind = ("simd", exact_parts) if simd else ()  # the exact kernel's key as before
+        key: tuple = (jit, plant.name, plant.kernel_step, len(plant.state), one, atom_source(rt.preds, rt.columns))
+        key += (timed, *kind)
         trial = _KERNELS.get(key)
         if trial is None:
             if jit is fk.identity or jit is fk.jit:
                 atoms = compile_atoms(rt.preds, rt.columns, fk.identity)
-                plain = fk.trial_kernel(plain_step, atoms, fk.identity, one, timed)
+                plain = build(plain_step, atoms, fk.identity)
                 if jit is fk.identity:
                     trial = plain
                 else:  # compiled once per machine, through the disk cache
@@ -569,7 +593,7 @@ class Sacpn:
                     trial = jitcache.load(plain)
             if trial is None:  # compiled in memory, for this process
                 step = plant.kernel_step(plant, self.params, jit)[0]
-                trial = fk.trial_kernel(step, compile_atoms(rt.preds, rt.columns, jit), jit, one, timed)
+                trial = build(step, compile_atoms(rt.preds, rt.columns, jit), jit)
             _KERNELS[key] = trial
         self._kernel_fn = trial  # the compiled (or plain) trial itself, for inspection
         feats = self.features
