@@ -19,7 +19,9 @@ With ``--workers N`` it measures instead what training the runs in ``N`` forked 
 (``mitlc train --workers``, :meth:`mitlc.learn.search.SearchRuns.train`): ``--train-generations`` generations
 of the runs in one process and in ``N``, alternately, ``--repeat`` times each; it prints the median wall
 times, their ratio, the processes' CPU seconds (what splitting the runs costs in per-call overhead) and
-checks that both give the same gains and fitness to the bit.
+checks that both give the same gains and fitness to the bit. Measured on this 2-core machine, the
+other core idle, 10 generations of ``cartpole_sway.mitl``, median of 3: 30 runs 12.78 s in one
+process, 6.17 s in two (2.07x; CPU 0.95x); 8 runs (the race's) 3.61 s and 2.27 s (1.59x; CPU 1.18x).
 
     python bench/bench_search.py [--spec bench/suite/specs/cartpole_slow_move.mitl] [--runs 30] [--workers 2]
 """
