@@ -189,7 +189,7 @@ def cos_vec_for(jit_fn: Callable) -> Callable:
             x = a[r]
             j = np.floor(x * two_over_pi + 0.5)
             y = ((x - j * p1) - j * p2) - j * p3
-            q = j - 4.0 * np.floor(j * 0.25)
+            quad = j - 4.0 * np.floor(j * 0.25)
             z = y * y
             sp = s7
             sp = sp * z + s6
@@ -207,8 +207,8 @@ def cos_vec_for(jit_fn: Callable) -> Callable:
             cp = cp * z + c3
             cp = cp * z + c2
             cs = 1.0 - (0.5 * z - z * z * cp)
-            v = sn if (q == 1.0 or q == 3.0) else cs
-            a[r] = -v if (q == 1.0 or q == 2.0) else v
+            v = sn if (quad == 1.0 or quad == 3.0) else cs
+            a[r] = -v if (quad == 1.0 or quad == 2.0) else v
 
     return compile_leaf(jit_fn, cos_vec, LEAF)
 
