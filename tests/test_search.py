@@ -229,6 +229,22 @@ def test_what_mitlc_train_learner_search_refuses_is_one_line_exit_2(tmp_path) ->
     assert r.exit_code == 2 and "search.npz" in r.output and len(r.output.strip().splitlines()) == 1, r.output
 
 
+def test_workers_where_no_policy_search_trains_is_one_line_exit_2(tmp_path) -> None:
+    """--workers splits the policy search's runs; with a learner that has none (SAC, SACPN alone, a HyRL
+    spec) it would do nothing, so it is refused before anything is trained or written."""
+    spec = tmp_path / "easy.mitl"
+    spec.write_text(EASY)
+    for options, what in (
+        (["--spec", str(spec), "--learner", "sac"], "SAC"),
+        (["--spec", str(spec), "--learner", "sacpn"], "SACPN"),
+        (["--spec", "specs/mass_damper/rise_time.mitl"], "HyRL"),
+    ):
+        r = _cli("train", *options, "--workers", "2", "--out", str(tmp_path / "o"))
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
+        assert "--workers" in r.output and what in r.output, r.output
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_run_does_not_depend_on_the_runs_beside_it_and_joined_runs_are_one_search() -> None:
     """Run r draws only from streams of (seed, r), cma's samples included: runs 0-1 and runs 2-4
     searched apart and joined are the five runs searched at once, to the bit."""

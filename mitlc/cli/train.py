@@ -384,6 +384,12 @@ def train(
                 raise InputError(f"{option} does not go with --learner {learner}: {what}", file=option)
     if starts_path is not None and resume_dir is None:
         raise InputError("--starts guides a resumed training: give --resume DIR too", file="--starts")
+    if workers is not None and learner in ("sac", "sacpn"):
+        why = "SAC steps its own vector of environments" if learner == "sac" else "SACPN trains its runs as one batch"
+        raise InputError(f"--workers trains the policy search's runs; {why}", file="--workers")
+    from mitlc.learn.search import usable_cores
+
+    processes = usable_cores() if workers is None else workers  # the policy search's, raced or alone
     if resume_dir is not None:
         ckpt = Path(resume_dir) / PARAMS
         if not ckpt.is_file():
@@ -419,6 +425,8 @@ def train(
         trials = TRIALS if trials is None else trials
         if starts_path is not None:
             raise InputError("--starts guides SACPN trainings; this spec trains HyRL", file="--starts")
+        if workers is not None:
+            raise InputError("--workers trains the policy search's runs; this spec trains HyRL", file="--workers")
         from mitlc.cli.hybrid import train_hybrid_cli
         from mitlc.learn.hyrl import HyrlSettings
 
@@ -444,16 +452,8 @@ def train(
         )
         rs_given = compile_spec(spec, options)
         if learner == "sac":
-            if workers is not None:
-                raise InputError(
-                    "--workers trains the policy search's runs; SAC steps its own vector of environments",
-                    file="--workers",
-                )
             out = _train_sac(spec, rs_given, runs, trials, seed, out, assignments, quiet, no_plots)
         else:
-            from mitlc.learn.search import usable_cores
-
-            processes = usable_cores() if workers is None else workers
             out = _train_search(spec, rs_given, runs, trials, seed, out, assignments, quiet, no_plots, processes)
         after_training(out, not (no_report or no_plots))
         return
@@ -473,9 +473,8 @@ def train(
     def build(st, r: int, s: int):
         return sacpn_learner(rs, st, r, s)
 
-    from mitlc.learn.search import SearchRuns, SearchSettings, usable_cores
+    from mitlc.learn.search import SearchRuns, SearchSettings
 
-    processes = usable_cores() if workers is None else workers
     given_sacpn = bool(assignments) or any(v is not None for v in (sigma, mask, saturation, penalty_ramp))
     searcher = None
     if learner is None and not given_sacpn and spec.plant is not None:
