@@ -483,7 +483,18 @@ def json_text(obj: Any, indent: int | None = None, **kw: Any) -> str:
     >>> json_text({"hi": float("inf")})
     '{"hi": null}\\n'
     """
-    return json.dumps(finite_or_none(obj), indent=indent, allow_nan=False, **kw) + "\n"
+    try:  # numpy values through the encoder's default; one pass where every float is finite (most data)
+        return json.dumps(obj, indent=indent, allow_nan=False, default=_plain, **kw) + "\n"
+    except ValueError:  # a non-finite float somewhere: the whole object made plain first
+        return json.dumps(finite_or_none(obj), indent=indent, allow_nan=False, **kw) + "\n"
+
+
+def _plain(obj: Any) -> Any:
+    """What :func:`json_text`'s encoder cannot write itself, as :func:`finite_or_none` makes it (a numpy
+    scalar or array, a mapping other than a dict); anything else the encoder's own ``TypeError``."""
+    if isinstance(obj, np.ndarray | np.generic | Mapping):
+        return finite_or_none(obj)
+    raise TypeError(f"Object of type {type(obj).__name__} is not JSON serializable")
 
 
 def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:

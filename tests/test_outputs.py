@@ -249,3 +249,44 @@ def test_when_every_run_diverges_the_set_still_says_where(tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     assert [d["run"] for d in m["diverged"]] == [0, 1] and all(d["trial"] > 0 for d in m["diverged"])
     assert "NaN" not in (out / "metrics.json").read_text()  # strict JSON: a diverged return is null
+
+
+# json_text: one encoder pass where the data is finite, the same bytes as making it plain first
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from mitlc.fileio import finite_or_none, json_text  # noqa: E402
+
+_FLOATS = st.floats(allow_nan=True, allow_infinity=True)
+_LEAVES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**20), 10**20),
+    st.text(max_size=4),
+    _FLOATS,
+    _FLOATS.map(np.float64),
+    _FLOATS.map(np.float32),
+    st.integers(-(2**62), 2**62).map(np.int64),
+    st.booleans().map(np.bool_),
+    st.lists(_FLOATS, max_size=4).map(np.array),
+    st.lists(st.integers(-5, 5), max_size=4).map(lambda v: np.array(v, dtype=np.int32)),
+)
+_DATA = st.recursive(
+    _LEAVES,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=4),
+        st.lists(inner, max_size=3).map(tuple),
+        st.dictionaries(st.text(max_size=3), inner, max_size=4),
+    ),
+    max_leaves=20,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(_DATA, st.sampled_from([None, 1, 2]))
+def test_json_text_is_strict_json_of_the_data_made_plain_first(data, indent) -> None:
+    """json_text hands numpy values to the encoder's default and only where a float is not finite
+    makes the whole object plain first (finite_or_none): the text is what that always gave."""
+    text = json_text(data, indent=indent)
+    assert text == json.dumps(finite_or_none(data), indent=indent, allow_nan=False) + "\n"
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
