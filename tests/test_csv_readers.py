@@ -6,6 +6,7 @@ was chosen (the pyarrow path hands every doubt to the numpy reader)."""
 from __future__ import annotations
 
 import struct
+import sys
 
 import numpy as np
 import pytest
@@ -30,6 +31,7 @@ def reader(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> s
         if not HAVE_ARROW:
             pytest.skip("pyarrow is not installed (the fast extra)")
         monkeypatch.delenv(READER_ENV, raising=False)
+        monkeypatch.setattr(trace_mod, "ARROW_MIN_BYTES", 0)  # pyarrow reads small files too
     return request.param
 
 
@@ -241,6 +243,7 @@ def test_both_readers_agree(tmp_path, monkeypatch: pytest.MonkeyPatch, text: str
     path = tmp_path / "t.csv"
     path.write_bytes(text.encode("utf-8"))
     monkeypatch.delenv(READER_ENV, raising=False)
+    monkeypatch.setattr(trace_mod, "ARROW_MIN_BYTES", 0)
     fast = outcome(path)
     monkeypatch.setenv(READER_ENV, "numpy")
     assert fast == outcome(path), text
@@ -300,3 +303,23 @@ def test_without_pyarrow_the_numpy_reader_reads(tmp_path, monkeypatch: pytest.Mo
     assert trace_mod._read_csv_arrow(str(path), ("q", "qdot")) is None
     tr, _ = read_trace(str(path), ("q", "qdot"), ("q", "qdot"))
     assert bits(tr.columns["q"]) == bits(float(c) for c in AWKWARD) and bits(tr.columns["qdot"]) == bits(qdot)
+
+
+def test_pyarrow_reads_only_files_that_pay_for_its_import(tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Below ARROW_MIN_BYTES, while pyarrow is not imported, the numpy reader reads (importing pyarrow
+    costs more than it saves there); at or above it, or once pyarrow is imported, pyarrow's reader is
+    tried first."""
+    path = tmp_path / "t.csv"
+    path.write_text("t,q\n0,1\n0.5,2\n")
+    tried: list[str] = []
+    monkeypatch.delenv(READER_ENV, raising=False)
+    monkeypatch.setattr(trace_mod, "_read_csv_arrow", lambda p, needed: tried.append(p))
+    monkeypatch.delitem(sys.modules, "pyarrow.csv", raising=False)
+    small = trace_mod._read_csv(str(path), ("t", "q"))
+    assert tried == [] and small.t.tolist() == [0.0, 0.5]
+    monkeypatch.setattr(trace_mod, "ARROW_MIN_BYTES", path.stat().st_size)
+    assert trace_mod._read_csv(str(path), ("t", "q")).t.tolist() == [0.0, 0.5] and tried == [str(path)]
+    monkeypatch.setattr(trace_mod, "ARROW_MIN_BYTES", path.stat().st_size + 1)
+    monkeypatch.setitem(sys.modules, "pyarrow.csv", object())
+    trace_mod._read_csv(str(path), ("t", "q"))
+    assert tried == [str(path)] * 2
