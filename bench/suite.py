@@ -137,6 +137,7 @@ def train_task(job: tuple) -> dict:
         given=given,
         search=searcher if can_search else None,
         generations=search_generations(trials),
+        workers=workers,
     )  # as mitlc train
     race_s = time.perf_counter() - t0
     if raced is not None and raced.learner == "search":

@@ -21,9 +21,16 @@ class Stand:
     ok: tuple[bool, ...]
     ret: float
     trained: int = 0
+    workers: int = 1
 
     def train(self, trials: int) -> None:
         self.trained = trials
+
+    def trained_state(self) -> int:  # what a race process sends back for a search
+        return self.trained
+
+    def restore_trained_state(self, state: int) -> None:
+        self.trained = state
 
 
 def _race(
@@ -31,6 +38,7 @@ def _race(
     returns: dict[str, float] | None = None,
     searching: bool = True,
     runs: int = 30,
+    workers: int = 1,
 ):
     returns = returns or {}
     made: list[Stand] = []
@@ -55,7 +63,19 @@ def _race(
     def judge(agent: Stand) -> tuple[np.ndarray, np.ndarray]:
         return np.array(agent.ok), np.full(len(agent.ok), agent.ret)
 
-    result = race(build, judge, SacpnSettings(), runs, 500, 0, search=search if searching else None, generations=100)
+    result = race(
+        build,
+        judge,
+        SacpnSettings(),
+        runs,
+        500,
+        0,
+        search=search if searching else None,
+        generations=100,
+        workers=workers,
+    )
+    if workers > 1:  # the designs after the first were built in processes of their own: the entries say which raced
+        return result, [e.name for e in result.entries]
     return result, [s.name for s in made]
 
 
@@ -109,3 +129,99 @@ def test_an_exact_tie_goes_to_sacpns_first_design_then_the_searches() -> None:
     assert result.winner == DESIGNS[4][0]
     result, _ = _race({}, runs=8, returns={SEARCH_DESIGNS[2][0]: 1.0, SEARCH_DESIGNS[1][0]: 1.0})
     assert result.winner == SEARCH_DESIGNS[1][0]
+
+
+SCENARIOS = [
+    ({SEARCH_DESIGNS[1][0]: (True,) * 8, DESIGNS[0][0]: (True,) * 8}, {}, True, 30),
+    ({SEARCH_DESIGNS[0][0]: (True,) * 8}, {}, True, 30),
+    ({SEARCH_DESIGNS[0][0]: (True,) * 4 + (False,) * 4, DESIGNS[3][0]: (True,) * 7 + (False,)}, {}, True, 30),
+    ({DESIGNS[2][0]: (True,) * 8}, {}, False, 30),
+    ({}, {SEARCH_DESIGNS[2][0]: 1.0, DESIGNS[4][0]: 1.0}, True, 8),
+    ({SEARCH_DESIGNS[3][0]: (True,) * 2}, {SEARCH_DESIGNS[3][0]: 2.0}, True, 8),
+]
+
+
+@pytest.mark.parametrize("case", range(len(SCENARIOS)))
+def test_designs_raced_in_processes_give_the_race_one_process_gives(case: int) -> None:
+    """workers = 2: the first design here, the rest in forked processes two at a time, consumed in order:
+    the same designs raced, entries, winner, settings and skipped designs, and the winning search's
+    trained state sent back."""
+    success, returns, searching, runs = SCENARIOS[case]
+    one, raced_one = _race(success, returns, searching, runs)
+    two, raced_two = _race(success, returns, searching, runs, workers=2)
+    assert raced_two == raced_one
+    assert two.record() == one.record() and two.settings == one.settings
+    if one.searched is not None:
+        assert (two.searched.name, two.searched.trained) == (one.searched.name, one.searched.trained)
+
+
+def test_a_real_race_in_processes_is_the_race_in_one_to_the_bit() -> None:
+    """A race of the real learners (the search's designs, then SACPN's) on a small spec: two processes
+    give the entries and the winning search's gains and fitness of one."""
+    from mitlc.cli.train import _monitor_judge
+    from mitlc.learn.search import SearchRuns, SearchSettings
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import parse_spec
+    from mitlc.sweep.race import greedy_verdicts
+    from mitlc.sweep.task import sacpn_learner
+
+    spec = parse_spec(
+        "plant mass-damper\ninit q in [-0.5, 0.5], qdot = 0\nhorizon 2\nprop far = abs(q) > 0.8\nformula F[0,1.5] far\n"
+    )
+    rs = compile_spec(spec)
+
+    def build(settings, runs, seed):
+        return sacpn_learner(rs, settings, runs, seed)
+
+    def search(runs, changes):
+        return SearchRuns(rs, runs, 0, SearchSettings(**changes), _monitor_judge(spec), workers=2)
+
+    got = [
+        race(build, greedy_verdicts, SacpnSettings(kernel="numpy"), 8, 20, 0, search=search, generations=3, workers=w)
+        for w in (1, 2)
+    ]
+    assert got[0] is not None and got[1] is not None
+    assert got[1].record() == got[0].record() and len(got[0].entries) == len(DESIGNS) + len(SEARCH_DESIGNS)
+    if got[0].learner == "search":
+        np.testing.assert_array_equal(got[1].searched.weights, got[0].searched.weights)
+        np.testing.assert_array_equal(got[1].searched.returns, got[0].searched.returns)
+        assert got[1].searched.trial == got[0].searched.trial == 3
+
+
+def test_an_error_in_a_race_process_is_raised_here_as_in_one_process() -> None:
+    """A design that fails to build (a plant SACPN cannot drive) raises the same error from its process."""
+    from mitlc.errors import InputError
+
+    def build(settings, runs, seed):
+        raise InputError("SACPN cannot drive this plant", file="spec.mitl")
+
+    def search(runs, changes):
+        return Stand(str(changes), (False,) * runs, 0.0)
+
+    def judge(agent):
+        return np.array(agent.ok), np.zeros(len(agent.ok))
+
+    for w in (1, 2):
+        with pytest.raises(InputError, match="cannot drive"):
+            race(build, judge, SacpnSettings(), 30, 500, 0, search=search, generations=100, workers=w)
+
+
+def test_a_race_process_that_dies_is_one_training_error_naming_workers() -> None:
+    """A design's process killed mid-race (here: it exits at once) is a TrainingError saying so and how to
+    race in one process, not a traceback of the process pool."""
+    import os
+
+    from mitlc.errors import TrainingError
+
+    def build(settings, runs, seed):  # only ever called in a race process here (workers = 2, searches first)
+        os._exit(9)
+
+    def search(runs, changes):
+        return Stand(str(changes), (False,) * runs, 0.0)
+
+    def judge(agent):
+        return np.array(agent.ok), np.zeros(len(agent.ok))
+
+    with pytest.raises(TrainingError, match="died") as err:
+        race(build, judge, SacpnSettings(), 30, 500, 0, search=search, generations=100, workers=2)
+    assert "--workers 1" in (err.value.hint or "")

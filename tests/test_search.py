@@ -229,14 +229,14 @@ def test_what_mitlc_train_learner_search_refuses_is_one_line_exit_2(tmp_path) ->
     assert r.exit_code == 2 and "search.npz" in r.output and len(r.output.strip().splitlines()) == 1, r.output
 
 
-def test_workers_where_no_policy_search_trains_is_one_line_exit_2(tmp_path) -> None:
-    """--workers splits the policy search's runs; with a learner that has none (SAC, SACPN alone, a HyRL
-    spec) it would do nothing, so it is refused before anything is trained or written."""
+def test_workers_where_neither_race_nor_search_trains_is_one_line_exit_2(tmp_path) -> None:
+    """--workers spreads the race's designs and the policy search's runs over processes; with a learner
+    that has neither (SAC, a HyRL spec) it would do nothing, so it is refused before anything is
+    trained or written."""
     spec = tmp_path / "easy.mitl"
     spec.write_text(EASY)
     for options, what in (
         (["--spec", str(spec), "--learner", "sac"], "SAC"),
-        (["--spec", str(spec), "--learner", "sacpn"], "SACPN"),
         (["--spec", "specs/mass_damper/rise_time.mitl"], "HyRL"),
     ):
         r = _cli("train", *options, "--workers", "2", "--out", str(tmp_path / "o"))

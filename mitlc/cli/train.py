@@ -332,8 +332,8 @@ def _outputs(
     "--workers",
     type=click.IntRange(1, 256),
     default=None,
-    help="Processes the policy search's runs are trained in, its race designs and the runs after "
-    "(default: the cores this process may use, at most 8). The results do not depend on it.",
+    help="Processes the race's designs and the policy search's runs are trained in (default: the cores "
+    "this process may use, at most 8). The results do not depend on it.",
 )
 @plant_file_option
 @handle_errors
@@ -384,12 +384,15 @@ def train(
                 raise InputError(f"{option} does not go with --learner {learner}: {what}", file=option)
     if starts_path is not None and resume_dir is None:
         raise InputError("--starts guides a resumed training: give --resume DIR too", file="--starts")
-    if workers is not None and learner in ("sac", "sacpn"):
-        why = "SAC steps its own vector of environments" if learner == "sac" else "SACPN trains its runs as one batch"
-        raise InputError(f"--workers trains the policy search's runs; {why}", file="--workers")
+    if workers is not None and learner == "sac":
+        raise InputError(
+            "--workers trains the race's designs and the policy search's runs; SAC steps its own vector of "
+            "environments",
+            file="--workers",
+        )
     from mitlc.learn.search import usable_cores
 
-    processes = usable_cores() if workers is None else workers  # the policy search's, raced or alone
+    processes = usable_cores() if workers is None else workers  # the race's and the policy search's
     if resume_dir is not None:
         ckpt = Path(resume_dir) / PARAMS
         if not ckpt.is_file():
@@ -426,7 +429,10 @@ def train(
         if starts_path is not None:
             raise InputError("--starts guides SACPN trainings; this spec trains HyRL", file="--starts")
         if workers is not None:
-            raise InputError("--workers trains the policy search's runs; this spec trains HyRL", file="--workers")
+            raise InputError(
+                "--workers trains the race's designs and the policy search's runs; this spec trains HyRL",
+                file="--workers",
+            )
         from mitlc.cli.hybrid import train_hybrid_cli
         from mitlc.learn.hyrl import HyrlSettings
 
@@ -521,6 +527,7 @@ def train(
                         given=chosen,
                         search=searcher,
                         generations=search_generations(trials),
+                        workers=processes,
                     )
                 if result is not None:
                     built, (settings, raced) = settings, (result.settings, result.record())

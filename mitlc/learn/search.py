@@ -593,6 +593,18 @@ class SearchRuns:
             codes[:, k + 1] = code = code1
         return Rollout(states, actions, codes, rewards, self.dt)
 
+    def trained_state(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """What training changed: the gains, each run's last fitness and the generations (what a process
+        that trained these runs sends back: :meth:`restore_trained_state`)."""
+        return self.weights, self.returns, self.trial
+
+    def restore_trained_state(self, state: tuple[np.ndarray, np.ndarray, int]) -> None:
+        """These runs as trained elsewhere (:meth:`trained_state` of the same runs, seed and settings)."""
+        weights, returns, trial = state
+        if weights.shape != self.weights.shape or returns.shape[:1] != self.returns.shape[:1]:
+            raise ValueError("restore_trained_state: the state of other runs")
+        self.weights, self.returns, self.trial = weights, returns, int(trial)
+
     def joined(self, rest: SearchRuns) -> SearchRuns:
         """These runs followed by ``rest`` (runs ``first + runs``, ... of the same seed, settings and
         generations) as one search: what a search of all of them at once gives, to the bit (each run

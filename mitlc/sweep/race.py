@@ -26,7 +26,7 @@ setting is given; ``--no-race`` trains SACPN's defaults straight away.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -211,13 +211,20 @@ def race(
     given: set[str] | frozenset[str] = frozenset(),
     search: Callable[[int, dict[str, Any]], Any] | None = None,
     generations: int = 0,
+    workers: int = 1,
 ) -> Race | None:
     """Race :data:`DESIGNS` (less the settings ``given``: :func:`designs`) on ``settings``, and the
     policy search when ``search`` is given, None when one design is left: ``build(settings, runs, seed)``
     makes a SACPN learner, ``search(runs, changes)`` an untrained search of runs ``0 .. runs - 1`` on
     the training's seed with each of :data:`SEARCH_DESIGNS`'s changes (trained for ``generations``),
     ``judge(learner)`` says which of its runs' final greedy policies satisfy the spec, and their greedy
-    rollouts' returns."""
+    rollouts' returns.
+
+    With ``workers`` above 1 (and ``fork``: not on Windows) the first design races here as ever (a
+    search's runs split over its own processes) and, unless it wins at once, the designs after it race
+    ``workers`` at a time in forked processes, in order, each alone (a search's runs in its one process):
+    the same entries, winner and numbers as one process gives (each design draws only from its own
+    seeds), in about ``1 / workers`` of the time where no design wins at once."""
     r = max(1, min(RACE_RUNS, -(-runs // 4)))
     t = max(1, int(round(trials * RACE_SHARE)))
     todo = designs(set(given))
@@ -226,7 +233,7 @@ def race(
     if n < 2:
         return None
     entries: list[Entry] = []
-    searched: list[Any] = []
+    searched: dict[int, Any] = {}  # the search designs raced, by index: the winner's runs are kept
 
     # the searches first (they won 38 of the tuning half's 39 trainings on plants they can drive,
     # record 18), then SACPN's designs; with EARLY_WIN_RUNS race runs, the first design whose every
@@ -234,21 +241,40 @@ def race(
     def won_early() -> bool:  # an early winner is the only entry at 1.0: the choice below picks it
         return r >= EARLY_WIN_RUNS and entries[-1].success >= 1.0
 
-    for j, (name, changes) in enumerate(searches):
-        searched.append(search(r, changes))  # type: ignore[misc]
-        if progress is not None:
-            progress(j, n, f"{name} ({r} runs x {generations} generations)")
-        entries.append(_run(searched[-1], name, generations, judge))
-        if won_early():
-            break
-    early = bool(entries) and won_early()  # a search won: SACPN's designs are not raced
-    for i, (name, changes) in enumerate(() if early else todo):
-        agent = build(replace(settings, **changes), r, race_seed(seed, i))  # a plant it cannot drive fails here
-        if progress is not None:  # design i of n starts
-            progress(len(searches) + i, n, f"{name} ({r} runs x {t} trials)")
-        entries.append(_run(agent, name, t, judge))
-        if won_early():
-            break
+    def label(k: int) -> str:
+        if k < len(searches):
+            return f"{searches[k][0]} ({r} runs x {generations} generations)"
+        return f"{todo[k - len(searches)][0]} ({r} runs x {t} trials)"
+
+    def learner(k: int) -> Any:  # design k's learner, untrained; a plant SACPN cannot drive fails here
+        if k < len(searches):
+            return search(r, searches[k][1])  # type: ignore[misc]
+        i = k - len(searches)
+        return build(replace(settings, **todo[i][1]), r, race_seed(seed, i))
+
+    def one(k: int, alone: bool = False) -> tuple[Entry, Any]:
+        """Design ``k`` raced: its entry, and its learner if a search (``alone``: in a race process of
+        its own, a search's runs trained in it, not split over more)."""
+        agent = learner(k)
+        if alone and k < len(searches):
+            agent.workers = 1
+        name = searches[k][0] if k < len(searches) else todo[k - len(searches)][0]
+        entry = _run(agent, name, generations if k < len(searches) else t, judge)
+        return entry, (agent if k < len(searches) else None)
+
+    if workers > 1 and _fork_context() is not None:
+        raced = _raced_in_processes(one, learner, n, workers, progress, label)
+    else:
+        raced = _raced_here(one, n, progress, label)
+    try:
+        for k, (entry, agent) in raced:
+            entries.append(entry)
+            if agent is not None:
+                searched[k] = agent
+            if won_early():
+                break
+    finally:
+        raced.close()  # the race processes still running are stopped
     # an exact tie goes to SACPN's designs in their order, then the searches' (the order they raced in
     # before the searches went first: a tie is decided as it was)
     tied = [len(todo) + j for j in range(len(searches))] + list(range(len(entries) - len(searches)))
@@ -260,6 +286,84 @@ def race(
         return Race(won, settings, tuple(entries), r, t, generations, searched[best], skipped=skipped)
     k = best - len(searches)
     return Race(todo[k][0], replace(settings, **todo[k][1]), tuple(entries), r, t, g, skipped=skipped)
+
+
+def _fork_context() -> Any:
+    """multiprocessing's ``fork`` context, or None (:func:`mitlc.learn.search._fork_context`)."""
+    from mitlc.learn.search import _fork_context as fork_context
+
+    return fork_context()
+
+
+def _raced_here(
+    one: Callable[..., tuple[Entry, Any]], n: int, progress: Callable[[int, int, str], None] | None, label: Callable
+) -> Generator[tuple[int, tuple[Entry, Any]], None, None]:
+    """Designs ``0 .. n - 1`` raced one after the other in this process, yielded as ``(k, one(k))``."""
+    for k in range(n):
+        if progress is not None:  # design k of n starts
+            progress(k, n, label(k))
+        yield k, one(k)
+
+
+_RACING: Any = None
+"""The race a forked race process trains a design of (:func:`_raced_in_processes`), inherited by fork."""
+
+
+def _raced_in_processes(
+    one: Callable[..., tuple[Entry, Any]],
+    learner: Callable[[int], Any],
+    n: int,
+    workers: int,
+    progress: Callable[[int, int, str], None] | None,
+    label: Callable[[int], str],
+) -> Generator[tuple[int, tuple[Entry, Any]], None, None]:
+    """Designs ``0 .. n - 1`` raced, yielded in order as ``(k, (entry, learner))``: the first in this
+    process, the rest ``workers`` at a time in forked processes (``one(k, alone=True)``), a search's
+    learner rebuilt here (``learner(k)``) with the trained state its process sends back. Closing the
+    generator (a design won at once, an error, an interrupt) stops the processes still racing."""
+    import signal
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    from mitlc.learn.search import _stop
+
+    if progress is not None:
+        progress(0, n, label(0))
+    yield 0, one(0)
+    global _RACING
+    _RACING = one
+    pool = ProcessPoolExecutor(
+        min(workers, n - 1),
+        mp_context=_fork_context(),
+        initializer=signal.signal,
+        initargs=(signal.SIGINT, signal.SIG_IGN),
+    )
+    try:
+        futures = {k: pool.submit(_race_design, k) for k in range(1, n)}
+        for k in range(1, n):
+            if progress is not None:  # design k of n is next (its process may have started it already)
+                progress(k, n, label(k))
+            try:
+                entry, state = futures[k].result()
+            except BrokenProcessPool:
+                raise TrainingError(
+                    "a process racing the designs died (killed, or out of memory)",
+                    hint="--workers 1 races them in this process",
+                ) from None
+            agent = None
+            if state is not None:  # a search: its runs as its process trained them
+                agent = learner(k)
+                agent.restore_trained_state(state)
+            yield k, (entry, agent)
+    finally:
+        _RACING = None
+        _stop(pool)
+
+
+def _race_design(k: int) -> tuple[Entry, Any]:
+    """In a forked process: design ``k`` of :data:`_RACING` raced; its entry and, a search's, its trained state."""
+    entry, agent = _RACING(k, alone=True)
+    return entry, (None if agent is None else agent.trained_state())
 
 
 def _run(agent: Any, name: str, trials: int, judge: Callable[[Any], tuple[np.ndarray, np.ndarray]]) -> Entry:
