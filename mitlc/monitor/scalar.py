@@ -623,6 +623,11 @@ class ScalarOnlineMonitor:
         self.satisfied = False
         self.robustness = 0.0
 
+    def signals(self) -> tuple[dict[str, list[bool]], dict[str, list[float]]]:
+        """Each proposition's truth and robustness on the samples so far, keyed by proposition (the
+        monitor's own lists, for reading: :meth:`mitlc.monitor.scalar_offline.ScalarTraceMonitor.judge_signals`)."""
+        return self._truth, self._rob
+
     def _push(self, x: Sequence[float]) -> None:
         """Each proposition's truth and robustness on ``x``, appended to its signals."""
         for pred, truths, robs in self._sinks:
