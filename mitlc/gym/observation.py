@@ -30,6 +30,7 @@ MARKING_OBS = ("dict", "box")
 """How the marking joins the observation: a ``Dict`` space or one flat ``Box``."""
 
 _SCALARS = (float, int, np.floating, np.integer)
+_FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 _TWO_PI = 2 * np.pi
 
 
@@ -45,6 +46,10 @@ def pendulum_v1_state(obs: Any) -> dict[str, Any]:
     >>> pendulum_v1_state(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -2.0]]))["q"].round(4)
     array([0.    , 1.5708])
     """
+    if type(obs) is np.ndarray and obs.shape == (3,) and obs.dtype in _FLOAT_DTYPES:  # one, as Python floats
+        c, s, thdot = obs.tolist()  # float32 -> the float64 numbers np.asarray(obs, dtype=float) holds
+        q = float(np.arctan2(s, c))  # numpy's arctan2 on float64 (math.atan2 differs in the last bit)
+        return {"q": (q + math.pi) % _TWO_PI - math.pi, "qdot": thdot}
     o = np.asarray(obs, dtype=float)
     if o.shape[-1:] != (3,):
         raise InputError(f"a Pendulum-v1 observation has 3 entries [cos th, sin th, thdot], got shape {o.shape}")
@@ -90,7 +95,7 @@ def state_reader(
 
         def read(obs: Any) -> list[float]:
             values = fn(obs)
-            if not isinstance(values, Mapping):
+            if type(values) is not dict and not isinstance(values, Mapping):
                 raise InputError(
                     f"observe() must return a mapping from state variable to value, got {type(values).__name__}"
                 )
@@ -109,7 +114,9 @@ def state_reader(
                 seen[0] = frozenset(values)
             x = [math.nan] * len(names)
             for key, v in values.items():
-                x[column[key]] = float(v) if isinstance(v, _SCALARS) else float(np.asarray(v, dtype=float))
+                if type(v) is not float:
+                    v = float(v) if isinstance(v, _SCALARS) else float(np.asarray(v, dtype=float))
+                x[column[key]] = v
             return x
 
     elif isinstance(observe, Mapping):
