@@ -13,9 +13,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mitlc.monitor.offline import monitor
-from mitlc.monitor.scalar import ScalarOnlineMonitor
+from mitlc.monitor.scalar import ScalarOnlineMonitor, _pred, _pred_compiled
 from mitlc.monitor.scalar_offline import ScalarTraceMonitor
 from mitlc.spec import ast as A
+from mitlc.spec import predicates as P
 from mitlc.spec.library import shipped_specs
 from mitlc.spec.parse import load_spec, parse_spec
 
@@ -128,3 +129,42 @@ def test_from_the_online_monitors_signals(f: A.Formula, n: int, seed: int) -> No
     got = mon.judge_signals(truth, rob, n)
     want = mon.judge(X)
     assert got[0] == want[0] and got[2:] == want[2:] and _bits(got[1]) == _bits(want[1])
+
+
+_TERMS = st.one_of(
+    st.sampled_from(["x", "y", "z"]).map(P.Var),
+    st.sampled_from([0.0, 0.5, -1.0, 3.0, math.inf]).map(P.Num),
+)
+_ARITH = st.recursive(
+    _TERMS,
+    lambda c: st.one_of(
+        st.builds(P.BinOp, st.sampled_from(["+", "-", "*", "/"]), c, c),
+        c.map(P.Neg),
+        st.builds(lambda fn, a: P.Call(fn, (a,)), st.sampled_from(["abs", "sqrt", "sin", "cos", "tan", "exp"]), c),
+        st.builds(lambda fn, a, b: P.Call(fn, (a, b)), st.sampled_from(["min", "max", "atan2"]), c, c),
+    ),
+    max_leaves=4,
+)
+_CMP = st.builds(
+    lambda ops, terms: P.Compare(tuple(terms[: len(ops) + 1]), tuple(ops)),
+    st.lists(st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), min_size=1, max_size=3),
+    st.lists(_ARITH, min_size=4, max_size=4),
+)
+_BOOL = st.recursive(
+    _CMP, lambda c: st.one_of(c.map(P.PNot), st.builds(P.PAnd, c, c), st.builds(P.POr, c, c)), max_leaves=4
+)
+_VALUE = st.one_of(st.sampled_from([0.0, -0.0, 0.5, 1.0, -1.0, 3.0, math.inf, -math.inf, math.nan]), st.floats())
+
+
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_BOOL, st.lists(st.tuples(_VALUE, _VALUE, _VALUE), min_size=1, max_size=5))
+def test_generated_predicates_are_the_closures(pred: P.Pred, samples: list) -> None:
+    """A proposition as one generated function gives the closures' truth and robustness, to the bit
+    (every operation and function, chains, and/or/not, nan, infinities and signed zeros)."""
+    columns = {"x": 0, "y": 1, "z": 2}
+    fast, ref = _pred_compiled(pred, columns), _pred(pred, columns)
+    with np.errstate(all="ignore"):
+        for x in samples:
+            (ta, ra), (tb, rb) = fast(list(x)), ref(list(x))
+            assert ta is tb or (ta == tb and type(ta) is type(tb)), (str(pred), x)
+            assert np.float64(ra).tobytes() == np.float64(rb).tobytes(), (str(pred), x, ra, rb)

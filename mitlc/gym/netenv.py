@@ -107,6 +107,7 @@ class MitlNetEnv:
         self._clock_high = clock_high(rs)
         self.dt = dt
         self.runtime = rt = NetRuntime(rs, self.state_names, dt=dt, steps=steps)
+        self._steps = rt.steps
         self._monitor = None
         self._judge: Any = None  # the episode's verdict on Python numbers (a ScalarTraceMonitor)
         self._online: Any = None
@@ -127,6 +128,7 @@ class MitlNetEnv:
             except ImportError:  # the monitor is optional here: no verdict without it
                 self._monitor = self._online = self._judge = None
         self._verdict_mode = verdict
+        self._samples_checked = False  # whether every sample comes from a reader that checks it (the wrapper's)
         self._judged = [(n, i) for i, n in enumerate(self.state_names) if n in self._needed]
 
         self._M = np.tile(np.asarray(rs.net.M0, dtype=np.int64), (1, 1))
@@ -219,7 +221,7 @@ class MitlNetEnv:
         (added to ``info`` where given, else in a dict of their own)."""
         k = self._k = self._k + 1
         self._rows.append(xs)
-        steps = self.runtime.steps
+        steps = self._steps
         if steps is not None and k > steps:
             raise InputError(
                 f"the episode ran past the spec's horizon ({self.mitl_spec.horizon} s): the timed obligations "
@@ -233,8 +235,7 @@ class MitlNetEnv:
             self._code1 = code1 = step1(code, xs, tau)
             rewards1 = self._rewards1
             reward = rewards1[code][code1] if rewards1 is not None else float(self._reward_of[code, code1])
-            self._M = self._M_of[code1]
-            marking = self._rows1[code1].copy()
+            marking = self._rows1[code1].copy()  # (_M, the array path's marking, is not kept up here)
         else:
             x = np.array([xs], dtype=float)
             if self._code is not None and self._marking_of is not None:
@@ -268,7 +269,10 @@ class MitlNetEnv:
             elif self._verdict_mode != "off":
                 self._add_verdict(info)
         elif online is not None:
-            satisfied, robustness = online.update(xs) if self._online_scalar else self._online_update(xs)
+            if self._online_scalar:  # a sample the reader checked (finite, one value per column) or not
+                satisfied, robustness = online.update_checked(xs) if self._samples_checked else online.update(xs)
+            else:
+                satisfied, robustness = self._online_update(xs)
             info["verdict"] = {"satisfied": satisfied, "robustness": robustness}
         return reward, info
 

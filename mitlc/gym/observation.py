@@ -46,10 +46,9 @@ def pendulum_v1_state(obs: Any) -> dict[str, Any]:
     >>> pendulum_v1_state(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -2.0]]))["q"].round(4)
     array([0.    , 1.5708])
     """
-    if type(obs) is np.ndarray and obs.shape == (3,) and obs.dtype in _FLOAT_DTYPES:  # one, as Python floats
-        c, s, thdot = obs.tolist()  # float32 -> the float64 numbers np.asarray(obs, dtype=float) holds
-        q = float(np.arctan2(s, c))  # numpy's arctan2 on float64 (math.atan2 differs in the last bit)
-        return {"q": (q + math.pi) % _TWO_PI - math.pi, "qdot": thdot}
+    one = _pendulum_v1_one(obs)
+    if one is not None:
+        return {"q": one[0], "qdot": one[1]}
     o = np.asarray(obs, dtype=float)
     if o.shape[-1:] != (3,):
         raise InputError(f"a Pendulum-v1 observation has 3 entries [cos th, sin th, thdot], got shape {o.shape}")
@@ -57,6 +56,16 @@ def pendulum_v1_state(obs: Any) -> dict[str, Any]:
         q = float(np.arctan2(o[1], o[0]))
         return {"q": (q + math.pi) % _TWO_PI - math.pi, "qdot": float(o[2])}
     return {"q": np.asarray(wrap_angle(np.arctan2(o[..., 1], o[..., 0]))), "qdot": o[..., 2]}
+
+
+def _pendulum_v1_one(obs: Any) -> tuple[float, float] | None:
+    """``(q, qdot)`` of one float ``Pendulum-v1`` observation as :func:`pendulum_v1_state` gives them,
+    on Python floats; None for anything else (a batch, another dtype or shape: the general path)."""
+    if type(obs) is not np.ndarray or obs.shape != (3,) or obs.dtype not in _FLOAT_DTYPES:
+        return None
+    c, s, thdot = obs.tolist()  # float32 -> the float64 numbers np.asarray(obs, dtype=float) holds
+    q = float(np.arctan2(s, c))  # numpy's arctan2 on float64 (math.atan2 differs in the last bit)
+    return (q + math.pi) % _TWO_PI - math.pi, thdot
 
 
 def spec_observe(plant: Any, base: spaces.Space) -> Callable[[Any], dict[str, float]]:
@@ -118,6 +127,18 @@ def state_reader(
                     v = float(v) if isinstance(v, _SCALARS) else float(np.asarray(v, dtype=float))
                 x[column[key]] = v
             return x
+
+        if fn is pendulum_v1_state and "q" in column and "qdot" in column and set(needed) <= {"q", "qdot"}:
+            # the dict it would give, its keys good: the floats straight into their columns
+            general, iq, iw, width = read, column["q"], column["qdot"], len(names)
+
+            def read(obs: Any) -> list[float]:
+                one = _pendulum_v1_one(obs)
+                if one is None:
+                    return general(obs)
+                x = [math.nan] * width
+                x[iq], x[iw] = one
+                return x
 
     elif isinstance(observe, Mapping):
         unknown = [k for k in observe if k not in column]

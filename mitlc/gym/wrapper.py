@@ -221,6 +221,7 @@ class MitlRewardWrapper(MitlNetEnv, gym.Wrapper, gym.utils.RecordConstructorArgs
             dtype=bool,
         )
         self._read = state_reader(observe, base, self.state_names, self._needed, self._periodic)
+        self._samples_checked = True  # the reader gives a value per column, every needed one finite
         # a gym:ID spec's init is a condition on the environment's starts (a reset outside is
         # redone); another plant's init describes that plant's starts, which an environment
         # cannot be put in (a point such as q = pi is never drawn): the env starts as it does

@@ -34,7 +34,7 @@ import numpy as np
 
 from mitlc.errors import CompileError, InputError
 from mitlc.monitor.offline import judged_formula, needed_variables, sample_time, state_columns
-from mitlc.monitor.scalar import _BOOL, _REAL, _Lat, _may_warn, _pred
+from mitlc.monitor.scalar import _BOOL, _REAL, _Lat, _may_warn, _pred_compiled
 from mitlc.spec import ast as A
 from mitlc.spec.model import Spec
 
@@ -481,7 +481,7 @@ class ScalarTraceMonitor:
         self.names = sorted({f.name for f in A.walk(self.formula) if isinstance(f, A.Atom)})
         where = {n: i for i, n in enumerate(self.columns)}
         self._preds: list[tuple[str, Callable[[Sequence[float]], tuple[bool, float]]]] = [
-            (n, _pred(spec.prop(n).pred, where)) for n in self.names
+            (n, _pred_compiled(spec.prop(n).pred, where)) for n in self.names
         ]
         self._quiet = any(_may_warn(spec.prop(n).pred) for n in self.names)
         plant = spec.plant
