@@ -502,17 +502,15 @@ class ScalarTraceMonitor:
         (None where satisfied) of the trace ``rows`` (samples ``0 .. N``)."""
         if not len(rows):
             raise InputError("a trace needs at least one sample")
-        for k, x in enumerate(rows):
-            for i, n in self._check:
-                if not math.isfinite(x[i]):
-                    raise InputError(f"state variable '{n}' is not finite (run 0, sample {k}: {x[i]})")
-        wrap = self._wrap
-        if wrap:  # wrap_angle's operations on a float (numpy's remainder is Python's %)
-            wrapped = [list(x) for x in rows]
-            for y in wrapped:
-                for i in wrap:
-                    y[i] = (y[i] + math.pi) % _TWO_PI - math.pi
-            rows = wrapped
+        columns = list(zip(*rows, strict=True))
+        for i, n in self._check:
+            if not all(map(math.isfinite, columns[i])):
+                k = next(k for k, v in enumerate(columns[i]) if not math.isfinite(v))
+                raise InputError(f"state variable '{n}' is not finite (run 0, sample {k}: {columns[i][k]})")
+        if self._wrap:  # wrap_angle's operations on a float (numpy's remainder is Python's %)
+            for i in self._wrap:
+                columns[i] = tuple([(v + math.pi) % _TWO_PI - math.pi for v in columns[i]])
+            rows = list(zip(*columns, strict=True))
         truth: dict[str, list] = {}
         rob: dict[str, list] = {}
         with np.errstate(all="ignore") if self._quiet else contextlib.nullcontext():
