@@ -44,22 +44,26 @@ from mitlc.monitor.online import OnlineMonitor
 from mitlc.spec.parse import load_spec
 
 
-def run_once(reset: Any, step: Any, steps: int, seed: int) -> float:
-    """Microseconds per step of ``steps`` steps (a reset when an episode ends)."""
+def run_once(reset: Any, step: Any, steps: int, seed: int, episode: int | None = None) -> float:
+    """Microseconds per step of ``steps`` steps (a reset when an episode ends, or every ``episode``
+    steps: the bare environment's episodes as long as the wrapper's)."""
     a = np.array([0.5], dtype=np.float32)
     reset(seed=seed)
+    k = 0
     t0 = time.perf_counter()
     for _ in range(steps):
         out = step(a)
-        if out[2] or out[3]:
+        k += 1
+        if out[2] or out[3] or k == episode:
             reset()
+            k = 0
     return (time.perf_counter() - t0) / steps * 1e6
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=2000)
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--steps", type=int, default=1200)
+    ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--spec", default="pendulum/p1_swing_up")
     args = ap.parse_args()
     spec = load_spec(args.spec)
@@ -69,25 +73,37 @@ def main() -> None:
             gym.make("Pendulum-v1").unwrapped, spec, pendulum_v1_state, verdict=verdict, truncate_at_horizon=True
         )
 
-    array = make("step")
-    array._online = OnlineMonitor(spec, array.dt)  # noqa: SLF001 - the monitor "step" ran before
+    def reference(verdict: str) -> MitlRewardWrapper:  # the runtime's arrays and the offline monitor
+        env = make(verdict)
+        env._step1 = None  # noqa: SLF001 - the array path: step_code and reward_code on (1, n) arrays
+        env._judge = None  # noqa: SLF001 - the episode's verdict by mitlc.monitor.monitor
+        return env
+
+    array = reference("step")
+    array._online = OnlineMonitor(spec, array.dt)  # noqa: SLF001 - the monitor "step" ran before the one-run one
     array._online_scalar = False  # noqa: SLF001
     bare = gym.make("Pendulum-v1").unwrapped
+    episode = make("off").runtime.steps or int(round(spec.horizon / bare.dt))
     envs: dict[str, Any] = {"bare": bare, "off": make("off"), "end": make("end"), "step": make("step")}
+    for verdict in ("off", "end", "step"):
+        envs[f"{verdict}, reference"] = reference(verdict)
     envs["step, array monitor"] = array
     times: dict[str, list[float]] = {name: [] for name in envs}
     for r in range(args.repeat):  # interleaved: a load that comes and goes hits every mode alike
         for name, env in envs.items():
-            times[name].append(run_once(env.reset, env.step, args.steps, r))
+            times[name].append(run_once(env.reset, env.step, args.steps, r, episode if name == "bare" else None))
     t = {name: statistics.median(ts) for name, ts in times.items()}
-    off = t["off"] - t["bare"]
+    # the overhead of a round: the mode's time less the bare step's of the same round (a load that
+    # drifts between rounds cancels out), then the median over the rounds
+    over = {
+        name: statistics.median(a - b for a, b in zip(ts, times["bare"], strict=True)) for name, ts in times.items()
+    }
     print(f"Pendulum-v1 with {args.spec} ({spec.formula}); microseconds per step, median of {args.repeat}")
-    print(f"  bare environment step: {t['bare']:8.1f}")
+    print(f"  bare environment step: {t['bare']:8.1f} (reset every {episode} steps, as the wrapper's episodes)")
     print(f"  {'verdict':<20} {'step':>8} {'overhead':>9} {'/ off':>6}")
     for name in envs:
         if name != "bare":
-            over = t[name] - t["bare"]
-            print(f"  {name:<20} {t[name]:8.1f} {over:9.1f} {over / off:6.1f}")
+            print(f"  {name:<20} {t[name]:8.1f} {over[name]:9.1f} {over[name] / over['off']:6.1f}")
 
 
 if __name__ == "__main__":

@@ -128,18 +128,6 @@ def state_reader(
                 x[column[key]] = v
             return x
 
-        if fn is pendulum_v1_state and "q" in column and "qdot" in column and set(needed) <= {"q", "qdot"}:
-            # the dict it would give, its keys good: the floats straight into their columns
-            general, iq, iw, width = read, column["q"], column["qdot"], len(names)
-
-            def read(obs: Any) -> list[float]:
-                one = _pendulum_v1_one(obs)
-                if one is None:
-                    return general(obs)
-                x = [math.nan] * width
-                x[iq], x[iw] = one
-                return x
-
     elif isinstance(observe, Mapping):
         unknown = [k for k in observe if k not in column]
         if unknown:
@@ -192,6 +180,24 @@ def state_reader(
             x[i] = (x[i] + math.pi) % _TWO_PI - math.pi
         return x
 
+    if observe is pendulum_v1_state and "q" in column and "qdot" in column and set(needed) <= {"q", "qdot"}:
+        # the dict it would give has good keys: its two floats straight into their columns, then checked
+        iq, iw, width = column["q"], column["qdot"], len(names)
+
+        def checked_pendulum(obs: Any) -> list[float]:
+            one = _pendulum_v1_one(obs)
+            if one is None:  # a batch, another dtype: the general path
+                return checked(obs)
+            x = [math.nan] * width
+            x[iq], x[iw] = one
+            for n, i in checks:
+                if not math.isfinite(x[i]):
+                    raise InputError(f"observe gave a non-finite value for '{n}': {x[i]}")
+            for i in angles:
+                x[i] = (x[i] + math.pi) % _TWO_PI - math.pi
+            return x
+
+        return checked_pendulum
     return checked
 
 

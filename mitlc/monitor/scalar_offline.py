@@ -211,7 +211,6 @@ class _Run:
     def __init__(self, mon: ScalarTraceMonitor, truth: dict[str, list], rob: dict[str, list], L: int) -> None:
         self.mon, self.truth, self.rob, self.L, self.N = mon, truth, rob, L, L - 1
         self.cache: dict[tuple[int, int], list] = {}
-        self.indices: list[float] | None = None  # a sample's own index: when a proposition settles
 
     def offsets(self, interval: A.Interval) -> tuple[int, float]:
         return self.mon.offsets(interval)
@@ -273,9 +272,7 @@ class _Run:
 
     def _settle(self, f: A.Formula) -> list[float]:
         if isinstance(f, (A.Const, A.Atom)):
-            if self.indices is None:
-                self.indices = [float(i) for i in range(self.L)]
-            return self.indices
+            return self.mon.indices(self.L)
         if isinstance(f, (A.Not, A.Weighted)):
             return self.settle(f.child)
         if isinstance(f, (A.And, A.Or)):
@@ -490,6 +487,13 @@ class ScalarTraceMonitor:
         self._check = [(where[n], n) for n in self.needed]
         self._offsets: dict[A.Interval, tuple[int, float]] = {}
         self._texts: dict[int, str] = {}
+        self._indices: list[float] = []
+
+    def indices(self, length: int) -> list[float]:
+        """``[0.0, 1.0, .. length - 1]``: when each sample of a proposition settles (one list, read only)."""
+        if len(self._indices) != length:
+            self._indices = [float(i) for i in range(length)]
+        return self._indices
 
     def offsets(self, interval: A.Interval) -> tuple[int, float]:
         out = self._offsets.get(interval)
