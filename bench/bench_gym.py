@@ -1,32 +1,46 @@
 """The Gymnasium wrapper's cost per step over the bare environment, in each ``verdict`` mode.
 
-Run:  python bench/bench_gym.py [--steps 2000] [--repeat 5] [--spec pendulum/p1_swing_up]
+Run:  python bench/bench_gym.py [--steps 1200] [--repeat 15] [--spec pendulum/p1_swing_up]
 
-Steps ``Pendulum-v1`` (its bare step, unwrapped) and :class:`mitlc.gym.MitlRewardWrapper`
-around it with a constant input, in one process, the runs of each mode interleaved: the
-wrapper with ``verdict="off"`` (the baseline: the net alone), ``"end"`` and ``"step"`` as they
-are, and ``"step"`` on the array online monitor (:class:`mitlc.monitor.online.OnlineMonitor`,
-what ``"step"`` ran before the one-run monitor :class:`mitlc.monitor.scalar.ScalarOnlineMonitor`).
-Episodes are truncated at the spec's horizon. It prints the median microseconds per step of
-``--repeat`` runs of ``--steps`` steps, the wrapper's overhead over the bare step and that
-overhead over ``"off"``'s. It prints timings; it asserts nothing about them.
+Steps ``Pendulum-v1`` (its bare step, unwrapped, reset every episode's length: 60 steps for P1's
+3 s at 0.05 s) and :class:`mitlc.gym.MitlRewardWrapper` around it with a constant input, in one
+process, the runs of each mode interleaved: the wrapper with ``verdict="off"`` (the net alone),
+``"end"`` and ``"step"`` as they are; the same three on the reference path (``, reference``: the
+runtime's ``(1, n)`` arrays, the start found by :meth:`~mitlc.runtime.NetRuntime.reset`, the
+episode's verdict by :func:`mitlc.monitor.monitor`), which the fast path equals to the bit
+(tests/test_gym_fast_path.py); and ``"step"`` on the array online monitor
+(:class:`mitlc.monitor.online.OnlineMonitor`, what ``"step"`` ran before the one-run monitor
+:class:`mitlc.monitor.scalar.ScalarOnlineMonitor`). Episodes are truncated at the spec's horizon.
+It prints the median microseconds per step of ``--repeat`` rounds of ``--steps`` steps, and each
+mode's overhead: the median over the rounds of its time less the bare step's of the same round (a
+load that drifts between rounds cancels), and that over ``"off"``'s. It prints timings; it asserts
+nothing about them.
 
-Measured (2 cores shared with other jobs, Python 3.11, p1_swing_up, ``F G kappa``, median of 7;
-bare step 11.1), microseconds per step over the bare step:
+Measured 2026-12-07 (2 cores, the other busy with another job: every figure moves by a third
+between runs; Python 3.11, numpy 2.4, p1_swing_up, ``F G kappa``), microseconds per step over the
+bare step, this bench (15 rounds) on the code before (main at e6742ca) and after, run one after
+the other; the quietest of three pairs of runs (bare step 11.6 / 12.3 us), then the median of the
+three:
 
-=====================  =========  ==========
-verdict                overhead   / ``off``
-=====================  =========  ==========
-``off``                     9.7        1.0
-``end``                    13.3        1.4
-``step``                   16.6        1.7
-``step``, array monitor    87.8        9.0
-=====================  =========  ==========
+=====================  ===========  ==========  ==================
+verdict                before       after       after, 3 runs
+=====================  ===========  ==========  ==================
+``off``                     9.6          4.4      6.0 (4.4-6.6)
+``end``                    13.9          6.5      9.0 (6.5-9.1)
+``step``                   18.3          7.3     10.7 (7.3-10.8)
+``off``, reference         23.2         18.7
+``end``, reference         28.7         24.9
+``step``, reference        34.2         27.5
+``step``, array monitor   109.7        112.0
+=====================  ===========  ==========  ==================
 
-``end`` over ``off`` is the offline monitor once per (violated) episode of 60 steps; ``step`` over
-``end`` the one-run online monitor (1.3 us a sample for ``F G kappa`` alone) and its ``info`` entry.
-Where an episode ends satisfied, ``step`` takes its verdict from the online monitor and skips the
-offline one.
+(before: 10.1-13.3, 13.9-16.7 and 18.0-21.7 over the three runs). Where the net is tabulated and
+untimed, a step is the propositions as one generated function, two look-ups in nested lists and a
+marking row copied; ``end`` over ``off`` is the verdict of each (violated) 60-step episode by
+:class:`mitlc.monitor.scalar_offline.ScalarTraceMonitor` (about 70 us, against the offline
+monitor's 180 us); ``step`` over ``end`` the one-run online monitor (about 1 us a sample for
+``F G kappa``) and its ``info`` entry. Where an episode ends satisfied, ``step`` takes its verdict
+from the online monitor and judges nothing more.
 """
 
 from __future__ import annotations
