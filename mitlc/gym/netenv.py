@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.errors import InputError
+from mitlc.errors import InputError, MitlError
 from mitlc.gym.observation import clock_high, n_clocks, token_bounds
 from mitlc.petri.compile import RewardSystem, compile_spec
 from mitlc.runtime import NetRuntime, scalar_atoms
@@ -116,7 +116,10 @@ class MitlNetEnv:
             try:
                 self._monitor = importlib.import_module("mitlc.monitor").monitor
                 scalar_offline = importlib.import_module("mitlc.monitor.scalar_offline")
-                self._judge = scalar_offline.ScalarTraceMonitor(spec, dt, columns=self.state_names)
+                try:
+                    self._judge = scalar_offline.ScalarTraceMonitor(spec, dt, columns=self.state_names)
+                except MitlError:  # nothing to judge by (no formula line): the offline monitor says so, at the end
+                    self._judge = None
                 if verdict == "step":  # each prefix's verdict in constant time per step, on Python floats
                     scalar = importlib.import_module("mitlc.monitor.scalar")
                     self._online = scalar.ScalarOnlineMonitor(spec, dt, columns=self.state_names)
