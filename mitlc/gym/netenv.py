@@ -20,10 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.errors import InputError
+from mitlc.errors import InputError, MitlError
 from mitlc.gym.observation import clock_high, n_clocks, token_bounds
 from mitlc.petri.compile import RewardSystem, compile_spec
-from mitlc.runtime import NetRuntime
+from mitlc.runtime import NetRuntime, scalar_atoms
+from mitlc.runtime.netruntime import LIST_TABLE_LIMIT
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
 from mitlc.spec.parse import load_spec
@@ -106,12 +107,19 @@ class MitlNetEnv:
         self._clock_high = clock_high(rs)
         self.dt = dt
         self.runtime = rt = NetRuntime(rs, self.state_names, dt=dt, steps=steps)
+        self._steps = rt.steps
         self._monitor = None
+        self._judge: Any = None  # the episode's verdict on Python numbers (a ScalarTraceMonitor)
         self._online: Any = None
         self._online_scalar = False  # a ScalarOnlineMonitor, fed lists of floats
         if verdict != "off":
             try:
                 self._monitor = importlib.import_module("mitlc.monitor").monitor
+                scalar_offline = importlib.import_module("mitlc.monitor.scalar_offline")
+                try:
+                    self._judge = scalar_offline.ScalarTraceMonitor(spec, dt, columns=self.state_names)
+                except MitlError:  # nothing to judge by (no formula line): the offline monitor says so, at the end
+                    self._judge = None
                 if verdict == "step":  # each prefix's verdict in constant time per step, on Python floats
                     scalar = importlib.import_module("mitlc.monitor.scalar")
                     self._online = scalar.ScalarOnlineMonitor(spec, dt, columns=self.state_names)
@@ -121,13 +129,14 @@ class MitlNetEnv:
                         self._online = online.OnlineMonitor(spec, dt)
                         self._online_scalar = False
             except ImportError:  # the monitor is optional here: no verdict without it
-                self._monitor = self._online = None
+                self._monitor = self._online = self._judge = None
         self._verdict_mode = verdict
+        self._samples_checked = False  # whether every sample comes from a reader that checks it (the wrapper's)
         self._judged = [(n, i) for i, n in enumerate(self.state_names) if n in self._needed]
 
         self._M = np.tile(np.asarray(rs.net.M0, dtype=np.int64), (1, 1))
         self._k = 0
-        self._trace = np.zeros((64, len(self.state_names)))
+        self._rows: list[list[float]] = [[0.0] * len(self.state_names)]  # the states x_0 .. x_k so far
         # a tabulated net steps on its marking code: two table look-ups, no marking checks
         self._code: np.ndarray | None = None
         self._marking_of: np.ndarray | None = None
@@ -145,11 +154,21 @@ class MitlNetEnv:
         if self._step1 is not None and (rt.tables is None or rt.tables.reward is None):
             self._step1 = None
         self._code1 = 0
+        self._rewards1: list[list[float]] | None = None
+        self._rows1: list[np.ndarray] = []
+        self._start1: dict[int, int] = {}  # atom code of x_0 -> marking code of the start, as reset finds it
+        self._atoms1: Callable[[Sequence[float]], int] | None = None
         if self._step1 is not None:
             assert rt.tables is not None and rt.tables.reward is not None and self._marking_of is not None
             self._reward_of = rt.tables.reward
             self._M_of = self._marking_of[:, None, :]  # code -> (1, places), the shape of _M
             self._row_of = self._marking_of.astype(self._marking_dtype)
+            # one sample on Python numbers: the rewards as nested lists of floats, a marking row per code
+            if self._reward_of.size <= LIST_TABLE_LIMIT:
+                self._rewards1 = self._reward_of.tolist()
+            self._rows1 = list(self._row_of)
+            if not rt.timed and not rt.counters.size:  # the start's marking: a function of x_0's atoms
+                self._atoms1 = scalar_atoms(rt.preds, rt.columns)
 
     @property
     def marking_codes(self) -> MarkingCodes | None:
@@ -169,11 +188,21 @@ class MitlNetEnv:
     def _net_reset(self, x0: np.ndarray) -> dict[str, Any]:
         """A new episode from the state ``x0`` ``(n,)``: the ``info`` entries of its start."""
         self._k = 0
-        self._trace[0] = x0
-        self._M = self.runtime.reset(x0[None, :])
-        if self._marking_of is not None:
-            self._code = self.runtime.encode(self._M)
-            self._code1 = int(self._code[0])
+        self._rows = [x0.tolist()]
+        atoms1 = self._atoms1
+        if atoms1 is not None and self._step1 is not None:  # the start of x_0's atoms, found once
+            atom = atoms1(x0.tolist())
+            code1 = self._start1.get(atom)
+            if code1 is None:
+                code1 = self._start1[atom] = int(self.runtime.encode(self.runtime.reset(x0[None, :]))[0])
+            self._code1 = code1
+            self._code = np.array([code1], dtype=np.int64)
+            self._M = self._M_of[code1]
+        else:
+            self._M = self.runtime.reset(x0[None, :])
+            if self._marking_of is not None:
+                self._code = self.runtime.encode(self._M)
+                self._code1 = int(self._code[0])
         info = self._info()
         if self._online is not None:
             self._online.reset()
@@ -187,27 +216,31 @@ class MitlNetEnv:
         """The clock after the next step."""
         return (self._k + 1) * self.dt
 
-    def _net_step(self, xs: list[float], done: bool) -> tuple[float, dict[str, Any]]:
+    def _net_step(
+        self, xs: list[float], done: bool, info: dict[str, Any] | None = None
+    ) -> tuple[float, dict[str, Any]]:
         """The net's step to the state ``xs`` (floats, ``state_names`` order), the last of the
-        episode when ``done``: the reward and the ``info`` entries ``marking``, ``tau``, ``verdict``."""
+        episode when ``done``: the reward and the ``info`` entries ``marking``, ``tau``, ``verdict``
+        (added to ``info`` where given, else in a dict of their own)."""
         k = self._k = self._k + 1
-        if k >= self._trace.shape[0]:
-            self._trace = np.concatenate([self._trace, np.zeros_like(self._trace)])
-        self._trace[k] = xs
-        if self.runtime.steps is not None and k > self.runtime.steps:
+        self._rows.append(xs)
+        steps = self._steps
+        if steps is not None and k > steps:
             raise InputError(
                 f"the episode ran past the spec's horizon ({self.mitl_spec.horizon} s): the timed obligations "
                 "end there; use truncate_at_horizon=True or a longer horizon",
                 file=self.mitl_spec.path,
             )
         tau = k * self.dt
-        if self._step1 is not None:  # one sample on Python numbers
+        step1 = self._step1
+        if step1 is not None:  # one sample on Python numbers
             code = self._code1
-            self._code1 = code1 = self._step1(code, xs, tau)
-            reward = float(self._reward_of[code, code1])
-            self._M = self._M_of[code1]
+            self._code1 = code1 = step1(code, xs, tau)
+            rewards1 = self._rewards1
+            reward = rewards1[code][code1] if rewards1 is not None else float(self._reward_of[code, code1])
+            marking = self._rows1[code1].copy()  # (_M, the array path's marking, is not kept up here)
         else:
-            x = self._trace[k : k + 1]
+            x = np.array([xs], dtype=float)
             if self._code is not None and self._marking_of is not None:
                 code_next = self.runtime.step_code(self._code, x, tau)
                 reward = float(self.runtime.reward_code(self._code, code_next, x)[0])
@@ -216,11 +249,16 @@ class MitlNetEnv:
                 M_next = self.runtime.step(self._M, x, tau)
                 reward = float(self.runtime.reward(self._M, M_next, x)[0])
                 self._M = M_next
+            marking = self.marking
         if self._paid is not None:  # the monitor's reward of the trace so far (terminal ones at its end)
-            reward = float(self._paid.step(self._trace[k : k + 1], done)[0])
-        info = self._info()
+            reward = float(self._paid.step(np.array([xs], dtype=float), done)[0])
+        if info is None:
+            info = {}
+        info["marking"] = marking
+        info["tau"] = tau
+        online = self._online
         if done:  # the whole episode's verdict, with when and why it failed
-            if self._online is not None:
+            if online is not None:
                 satisfied, robustness = self._online_update(xs)
                 if satisfied:  # the offline monitor's verdict to the bit, and nothing failed
                     info["verdict"] = {
@@ -233,8 +271,12 @@ class MitlNetEnv:
                     self._add_verdict(info)
             elif self._verdict_mode != "off":
                 self._add_verdict(info)
-        elif self._online is not None:
-            self._add_online_verdict(info, xs)
+        elif online is not None:
+            if self._online_scalar:  # a sample the reader checked (finite, one value per column) or not
+                satisfied, robustness = online.update_checked(xs) if self._samples_checked else online.update(xs)
+            else:
+                satisfied, robustness = self._online_update(xs)
+            info["verdict"] = {"satisfied": satisfied, "robustness": robustness}
         return reward, info
 
     @property
@@ -245,13 +287,13 @@ class MitlNetEnv:
         counts (the counters of ``violations = counted``).
         """
         if self._step1 is not None:
-            return self._row_of[self._code1].copy()
+            return self._rows1[self._code1].copy()
         return self._M[0].astype(self._marking_dtype)
 
     @property
     def trace(self) -> np.ndarray:
         """The states ``x_0 .. x_k`` of this episode so far, ``(k+1, n)`` (a copy)."""
-        return self._trace[: self._k + 1].copy()
+        return np.array(self._rows, dtype=float).reshape(len(self._rows), len(self.state_names))
 
     @property
     def clocks(self) -> np.ndarray:
@@ -279,7 +321,24 @@ class MitlNetEnv:
     def _add_verdict(self, info: dict[str, Any]) -> None:
         if self._monitor is None:
             return
-        states = {n: self._trace[: self._k + 1, i] for i, n in enumerate(self.state_names) if n in self._needed}
+        judge = self._judge
+        if judge is not None:  # one run on Python numbers: the offline monitor's verdict
+            truth, rob = self._online.signals() if self._online_scalar else ({}, {})
+            if self._online_scalar and all(n in truth for n in judge.names):  # the signals the online monitor kept
+                verdict = judge.judge_signals(truth, rob, self._k + 1)
+            else:
+                verdict = judge.judge(self._rows)
+            satisfied, robustness, violation, failing = verdict
+            if robustness and violation != 0.0:  # a zero's sign is numpy's: the offline monitor says it
+                info["verdict"] = {
+                    "satisfied": satisfied,
+                    "robustness": robustness,
+                    "violation_time": violation,
+                    "failing": failing,
+                }
+                return
+        trace = self.trace
+        states = {n: trace[:, i] for i, n in enumerate(self.state_names) if n in self._needed}
         res = self._monitor(self.mitl_spec, states, self.dt)
         violation = float(res.violation_time[0])
         info["verdict"] = {

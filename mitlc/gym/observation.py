@@ -30,6 +30,7 @@ MARKING_OBS = ("dict", "box")
 """How the marking joins the observation: a ``Dict`` space or one flat ``Box``."""
 
 _SCALARS = (float, int, np.floating, np.integer)
+_FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 _TWO_PI = 2 * np.pi
 
 
@@ -45,6 +46,9 @@ def pendulum_v1_state(obs: Any) -> dict[str, Any]:
     >>> pendulum_v1_state(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -2.0]]))["q"].round(4)
     array([0.    , 1.5708])
     """
+    one = _pendulum_v1_one(obs)
+    if one is not None:
+        return {"q": one[0], "qdot": one[1]}
     o = np.asarray(obs, dtype=float)
     if o.shape[-1:] != (3,):
         raise InputError(f"a Pendulum-v1 observation has 3 entries [cos th, sin th, thdot], got shape {o.shape}")
@@ -52,6 +56,16 @@ def pendulum_v1_state(obs: Any) -> dict[str, Any]:
         q = float(np.arctan2(o[1], o[0]))
         return {"q": (q + math.pi) % _TWO_PI - math.pi, "qdot": float(o[2])}
     return {"q": np.asarray(wrap_angle(np.arctan2(o[..., 1], o[..., 0]))), "qdot": o[..., 2]}
+
+
+def _pendulum_v1_one(obs: Any) -> tuple[float, float] | None:
+    """``(q, qdot)`` of one float ``Pendulum-v1`` observation as :func:`pendulum_v1_state` gives them,
+    on Python floats; None for anything else (a batch, another dtype or shape: the general path)."""
+    if type(obs) is not np.ndarray or obs.shape != (3,) or obs.dtype not in _FLOAT_DTYPES:
+        return None
+    c, s, thdot = obs.tolist()  # float32 -> the float64 numbers np.asarray(obs, dtype=float) holds
+    q = float(np.arctan2(s, c))  # numpy's arctan2 on float64 (math.atan2 differs in the last bit)
+    return (q + math.pi) % _TWO_PI - math.pi, thdot
 
 
 def spec_observe(plant: Any, base: spaces.Space) -> Callable[[Any], dict[str, float]]:
@@ -90,7 +104,7 @@ def state_reader(
 
         def read(obs: Any) -> list[float]:
             values = fn(obs)
-            if not isinstance(values, Mapping):
+            if type(values) is not dict and not isinstance(values, Mapping):
                 raise InputError(
                     f"observe() must return a mapping from state variable to value, got {type(values).__name__}"
                 )
@@ -109,7 +123,9 @@ def state_reader(
                 seen[0] = frozenset(values)
             x = [math.nan] * len(names)
             for key, v in values.items():
-                x[column[key]] = float(v) if isinstance(v, _SCALARS) else float(np.asarray(v, dtype=float))
+                if type(v) is not float:
+                    v = float(v) if isinstance(v, _SCALARS) else float(np.asarray(v, dtype=float))
+                x[column[key]] = v
             return x
 
     elif isinstance(observe, Mapping):
@@ -164,6 +180,24 @@ def state_reader(
             x[i] = (x[i] + math.pi) % _TWO_PI - math.pi
         return x
 
+    if observe is pendulum_v1_state and "q" in column and "qdot" in column and set(needed) <= {"q", "qdot"}:
+        # the dict it would give has good keys: its two floats straight into their columns, then checked
+        iq, iw, width = column["q"], column["qdot"], len(names)
+
+        def checked_pendulum(obs: Any) -> list[float]:
+            one = _pendulum_v1_one(obs)
+            if one is None:  # a batch, another dtype: the general path
+                return checked(obs)
+            x = [math.nan] * width
+            x[iq], x[iw] = one
+            for n, i in checks:
+                if not math.isfinite(x[i]):
+                    raise InputError(f"observe gave a non-finite value for '{n}': {x[i]}")
+            for i in angles:
+                x[i] = (x[i] + math.pi) % _TWO_PI - math.pi
+            return x
+
+        return checked_pendulum
     return checked
 
 

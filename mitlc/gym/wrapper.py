@@ -203,6 +203,8 @@ class MitlRewardWrapper(MitlNetEnv, gym.Wrapper, gym.utils.RecordConstructorArgs
             )
             self.marking_offset = int(flat.shape[0])
         self._flat_base = isinstance(base, spaces.Box) and len(base.shape) == 1
+        # an observation {"obs", "marking"} with the marking as it is (int8) and no clocks: built in step itself
+        self._dict_rows = marking_obs == "dict" and self._marking_dtype == np.int8 and not self.n_clocks
         self.horizon = s.horizon if truncate_at_horizon else None
         if truncate_at_horizon and self.horizon is None:
             raise InputError("truncate_at_horizon=True but the spec has no horizon")
@@ -219,6 +221,7 @@ class MitlRewardWrapper(MitlNetEnv, gym.Wrapper, gym.utils.RecordConstructorArgs
             dtype=bool,
         )
         self._read = state_reader(observe, base, self.state_names, self._needed, self._periodic)
+        self._samples_checked = True  # the reader gives a value per column, every needed one finite
         # a gym:ID spec's init is a condition on the environment's starts (a reset outside is
         # redone); another plant's init describes that plant's starts, which an environment
         # cannot be put in (a point such as q = pi is never drawn): the env starts as it does
@@ -226,6 +229,17 @@ class MitlRewardWrapper(MitlNetEnv, gym.Wrapper, gym.utils.RecordConstructorArgs
         self._init = [
             (self.state_names.index(r.var), r.lo, r.hi) for r in (s.init if own else ()) if r.var in self.state_names
         ]
+
+    @property
+    def horizon(self) -> float | None:
+        """The clock at which a step truncates the episode (``truncate_at_horizon``), or None."""
+        return self._horizon
+
+    @horizon.setter
+    def horizon(self, value: float | None) -> None:
+        self._horizon = value
+        # from this clock on a step truncates: the horizon, give or take 1e-9 relative
+        self._truncate_at = None if value is None else value - 1e-9 * max(1.0, value)
 
     # ------------------------------------------------------------ observation -> state
     def state(self, obs: Any) -> np.ndarray:
@@ -258,19 +272,20 @@ class MitlRewardWrapper(MitlNetEnv, gym.Wrapper, gym.utils.RecordConstructorArgs
         return self._observation(obs), info
 
     def _inside_init(self, x: np.ndarray) -> bool:
-        return not bool(outside_init(x[None, :], self._init)[0])
+        return not self._init or not bool(outside_init(x[None, :], self._init)[0])
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, env_reward, terminated, truncated, info = self.env.step(action)
         xs = self._read(obs)
-        tau = self._tau_next
-        if self.horizon is not None and tau >= self.horizon - 1e-9 * max(1.0, self.horizon):
+        if self._truncate_at is not None and (self._k + 1) * self.dt >= self._truncate_at:
             truncated = True
-        reward, net_info = self._net_step(xs, bool(terminated or truncated))
+        terminated, truncated = bool(terminated), bool(truncated)
         info = dict(info)
         info["env_reward"] = env_reward
-        info.update(net_info)
-        return self._observation(obs), reward, bool(terminated), bool(truncated), info
+        reward, info = self._net_step(xs, terminated or truncated, info)
+        if self._dict_rows:  # the marking a row of the net's table, no clocks: the observation at once
+            return {"obs": obs, "marking": self.marking}, reward, terminated, truncated, info
+        return self._observation(obs), reward, terminated, truncated, info
 
     # ------------------------------------------------------------ helpers
     def _observation(self, obs: Any) -> Any:

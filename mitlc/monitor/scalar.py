@@ -31,7 +31,6 @@ import numpy as np
 from mitlc.errors import InputError
 from mitlc.monitor.offline import judged_formula, needed_variables, sample_time, state_columns
 from mitlc.monitor.online import _atom_names, _Builder, _growing, _Node
-from mitlc.plants.base import wrap_angle
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 from mitlc.spec.model import Spec
@@ -39,6 +38,7 @@ from mitlc.spec.model import Spec
 __all__ = ["ScalarOnlineMonitor"]
 
 _INF = math.inf
+_TWO_PI = 2 * np.pi  # wrap_angle's
 
 
 class _Lat:
@@ -575,6 +575,104 @@ def _pred(p: P.Pred, columns: dict[str, int]) -> PredFn1:
     raise InputError(f"'{p}' is a number, not a condition")
 
 
+_MARGIN_SOURCE = {
+    "<": "{b} - {a}",
+    "<=": "{b} - {a}",
+    ">": "{a} - {b}",
+    ">=": "{a} - {b}",
+    "==": "-abs({a} - {b})",
+    "!=": "abs({a} - {b})",
+}
+
+
+def _literal(v: float) -> str:
+    if math.isnan(v):
+        return "nan"
+    if math.isinf(v):
+        return "inf" if v > 0 else "(-inf)"
+    return repr(v)
+
+
+def _operand_source(p: P.Pred, columns: dict[str, int]) -> str:
+    """:func:`_operand` as a Python expression over ``x``: the same operations in the same order."""
+    value = p.value if isinstance(p, P.Num) else P.const_value(p)
+    if value is not None:
+        return _literal(float(value))
+    if isinstance(p, P.Var):
+        return f"x[{int(columns[p.name])}]"
+    if isinstance(p, P.Neg):
+        return f"(-{_operand_source(p.arg, columns)})"
+    if isinstance(p, P.BinOp):
+        a, b = _operand_source(p.left, columns), _operand_source(p.right, columns)
+        return f"_divide({a}, {b})" if p.op == "/" else f"({a} {p.op} {b})"
+    if isinstance(p, P.Call):
+        args = [_operand_source(a, columns) for a in p.args]
+        if p.fn in ("abs", "sqrt"):
+            return f"{'abs' if p.fn == 'abs' else '_sqrt'}({args[0]})"
+        return f"float(_fn_{p.fn}({', '.join(args)}))"
+    raise InputError(f"'{p}' is not a number")  # pragma: no cover - the parser checks operand types
+
+
+def _pred_lines(p: P.Pred, columns: dict[str, int], lines: list[str], names: list[int]) -> tuple[str, str]:
+    """Statements computing :func:`_pred`'s truth and robustness of ``p`` into fresh variables, whose
+    names it returns."""
+    names[0] += 1
+    t, r = f"t{names[0]}", f"r{names[0]}"
+    if isinstance(p, P.Compare):
+        values = []
+        for o in p.operands:  # every operand first, left to right, as _pred's list
+            names[0] += 1
+            v = f"v{names[0]}"
+            lines.append(f"{v} = {_operand_source(o, columns)}")
+            values.append(v)
+        if len(p.ops) == 1:
+            op, a, b = p.ops[0], values[0], values[1]
+            lines += [
+                f"{t} = {a} {op} {b}",
+                f"{r} = {_MARGIN_SOURCE[op].format(a=a, b=b)}",
+                f"if {r} != {r}: {r} = 0.0",
+            ]
+            return t, r
+        lines += [f"{t} = True", f"{r} = inf"]
+        for op, a, b in zip(p.ops, values, values[1:], strict=False):
+            names[0] += 1
+            m = f"m{names[0]}"
+            lines += [
+                f"{t} = ({a} {op} {b}) and {t}",
+                f"{m} = {_MARGIN_SOURCE[op].format(a=a, b=b)}",
+                f"if {m} != {m}: {m} = 0.0",
+                f"{r} = min({r}, {m})",
+            ]
+        return t, r
+    if isinstance(p, (P.PAnd, P.POr)):
+        ta, ra = _pred_lines(p.left, columns, lines, names)
+        tb, rb = _pred_lines(p.right, columns, lines, names)
+        if isinstance(p, P.PAnd):
+            lines += [f"{t} = {ta} & {tb}", f"{r} = min({ra}, {rb})"]
+        else:
+            lines += [f"{t} = {ta} | {tb}", f"{r} = max({ra}, {rb})"]
+        return t, r
+    if isinstance(p, P.PNot):
+        ta, ra = _pred_lines(p.arg, columns, lines, names)
+        lines += [f"{t} = not {ta}", f"{r} = -{ra}"]
+        return t, r
+    raise InputError(f"'{p}' is a number, not a condition")
+
+
+def _pred_compiled(p: P.Pred, columns: dict[str, int]) -> PredFn1:
+    """:func:`_pred` as one generated Python function (no closure per node): the same operations
+    on the same floats in the same order, so the same truth and robustness to the bit
+    (tests/test_scalar_trace_monitor.py compares them)."""
+    lines: list[str] = []
+    t, r = _pred_lines(p, columns, lines, [0])
+    source = "def pred(x):\n" + "".join(f"    {line}\n" for line in lines) + f"    return {t}, {r}\n"
+    namespace: dict[str, Any] = {"inf": _INF, "nan": math.nan, "_divide": _divide, "_sqrt": _sqrt}
+    namespace.update({f"_fn_{name}": fn for name, (_, fn) in P.FUNCTIONS.items()})
+    exec(compile(source, "<mitlc scalar predicate>", "exec"), namespace)  # generated from the tree
+    fn: PredFn1 = namespace["pred"]
+    return fn
+
+
 # ----------------------------------------------------------------- the monitor
 
 
@@ -600,12 +698,13 @@ class ScalarOnlineMonitor:
         self._root = _Builder(self.dt)(self.formula)
         self._names = sorted(_atom_names(self._root))
         where = {n: i for i, n in enumerate(self.columns)}
-        self._preds = [_pred(spec.prop(n).pred, where) for n in self._names]
+        self._preds = [_pred_compiled(spec.prop(n).pred, where) for n in self._names]
         self._quiet = any(_may_warn(spec.prop(n).pred) for n in self._names)
         plant = spec.plant
         periodic = {v.name for v in plant.state if v.periodic} if plant is not None else set()
         self._wrap = [where[n] for n in self.needed if n in periodic]
         self._check = [(where[n], n) for n in self.needed]
+        self._width = len(self.columns)
         self.constant_time = not _growing(self._root)
         """Whether the work per sample stays bounded as the trace grows."""
         self.reset()
@@ -623,6 +722,11 @@ class ScalarOnlineMonitor:
         self.satisfied = False
         self.robustness = 0.0
 
+    def signals(self) -> tuple[dict[str, list[bool]], dict[str, list[float]]]:
+        """Each proposition's truth and robustness on the samples so far, keyed by proposition (the
+        monitor's own lists, for reading: :meth:`mitlc.monitor.scalar_offline.ScalarTraceMonitor.judge_signals`)."""
+        return self._truth, self._rob
+
     def _push(self, x: Sequence[float]) -> None:
         """Each proposition's truth and robustness on ``x``, appended to its signals."""
         for pred, truths, robs in self._sinks:
@@ -632,7 +736,7 @@ class ScalarOnlineMonitor:
 
     def update(self, x: Sequence[float]) -> tuple[bool, float]:
         """Add sample ``k + 1``; the verdict and robustness of the prefix so far."""
-        if len(x) != len(self.columns):
+        if len(x) != self._width:
             raise InputError(
                 f"a sample must have {len(self.columns)} values ({', '.join(self.columns) or 'no columns'}), "
                 f"got {len(x)}"
@@ -640,21 +744,30 @@ class ScalarOnlineMonitor:
         for i, n in self._check:
             if not math.isfinite(x[i]):
                 raise InputError(f"state variable '{n}' is not finite (sample {self.k + 1}: {x[i]})")
+        return self.update_checked(x)
+
+    def update_checked(self, x: Sequence[float]) -> tuple[bool, float]:
+        """:meth:`update` of a sample the caller has checked: as many values as columns, every
+        needed one finite (the Gymnasium wrapper's reader checks each observation so)."""
         if self._wrap:
             x = list(x)
-            for i in self._wrap:
-                x[i] = float(wrap_angle(x[i]))  # type: ignore[arg-type]  # on a float: numpy's remainder to the bit
+            for i in self._wrap:  # wrap_angle's operations (on a float: numpy's remainder to the bit)
+                x[i] = float((x[i] + math.pi) % _TWO_PI - math.pi)
         if self._quiet:  # IEEE arithmetic, as the offline monitor computes it: no warnings
             with np.errstate(all="ignore"):
                 self._push(x)
         else:
-            self._push(x)
+            for pred, truths, robs in self._sinks:
+                truth, rob = pred(x)
+                truths.append(truth)
+                robs.append(rob)
         self.k = k = self.k + 1
-        self._bool.k = self._real.k = k
-        if self._bool.memo:
-            self._bool.memo.clear()
-        if self._real.memo:
-            self._real.memo.clear()
-        self.satisfied = bool(self._root_bool())
-        self.robustness = float(self._root_real())
-        return self.satisfied, self.robustness
+        engine_bool, engine_real = self._bool, self._real
+        engine_bool.k = engine_real.k = k
+        if engine_bool.memo:
+            engine_bool.memo.clear()
+        if engine_real.memo:
+            engine_real.memo.clear()
+        satisfied = self.satisfied = bool(self._root_bool())
+        robustness = self.robustness = float(self._root_real())
+        return satisfied, robustness

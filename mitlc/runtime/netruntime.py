@@ -95,6 +95,11 @@ from mitlc.spec import predicates as P
 __all__ = ["NetRuntime"]
 
 
+LIST_TABLE_LIMIT = 1 << 16
+"""Most entries of a table that one-sample callers (:meth:`NetRuntime.sample_stepper`, the Gymnasium
+wrapper) copy into nested Python lists: a list look-up costs a tenth of numpy's scalar indexing."""
+
+
 class NetRuntime:
     """Step ``R`` copies of a reward net together with ``R`` plant states.
 
@@ -470,9 +475,16 @@ class NetRuntime:
         atoms = scalar_atoms(self.preds, self.columns)
         table = tables.next_code
         if not self.compact and not self.clocks:
+            if table[0].size <= LIST_TABLE_LIMIT:  # nested lists of ints: a look-up without numpy
+                rows = table[0].tolist()
 
-            def step(code: int, x: Sequence[float], tau: float) -> int:
-                return int(table[0, code, atoms(x)])
+                def step(code: int, x: Sequence[float], tau: float) -> int:
+                    return rows[code][atoms(x)]
+
+            else:
+
+                def step(code: int, x: Sequence[float], tau: float) -> int:
+                    return int(table[0, code, atoms(x)])
 
         else:
             clock = self.clock_code
