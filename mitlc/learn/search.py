@@ -88,7 +88,7 @@ FILE = "search.npz"
 """A search's file in its training folder: the gains per run, the fitness per generation and a ``meta``
 record (JSON text: the spec, the settings, runs, seed, generations, the plant's record)."""
 MAX_META_CHARS = 1 << 22
-SCORES = ("mean", "min")
+SCORES = ("mean", "min", "credit")
 """The scores of a violated rollout (:attr:`SearchSettings.score`)."""
 
 
@@ -131,7 +131,15 @@ class SearchSettings:
     ``mean``, by its averaged robustness (every ``G``'s window minimum replaced by its mean,
     :func:`mitlc.monitor.offline.mean_robustness`; the judge is then called with ``mean=True``).
     ``mean`` tells a swing-up that reaches the top and falls back from one that never leaves the
-    bottom, which the robustness (the worst sample) scores alike: the race's last search design."""
+    bottom, which the robustness (the worst sample) scores alike: the race's last search design.
+    ``credit`` scores a violated rollout by its credit and its non-vacuous robustness instead, with no
+    violation time (:func:`mitlc.monitor.offline.credit_score`): a bounded response ``G (a -> F[0,d] b)``
+    whose search, paid by the time and the robustness, postpones ``a`` and never goes on to ``b``."""
+    trigger_starts: float = 0.0
+    """The share of each generation's starts drawn where the antecedent of one of the formula's implications
+    holds (a propositional ``a`` in ``a -> ...``: uniform over the plant's box, kept where ``a`` holds) instead of
+    from the ``init`` box, so that the response is tried from where it is asked for; the evaluation starts stay
+    the ``init`` box's. 0: none (mitlc's own plants only; a formula without such an antecedent draws none)."""
     products: bool = False
     """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
     cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
@@ -150,6 +158,8 @@ class SearchSettings:
             raise InputError(f"period must be a number of seconds >= 0, got {self.period}", file="--set")
         if self.score not in SCORES:
             raise InputError(f"score must be one of {', '.join(SCORES)}, got {self.score!r}", file="--set")
+        if not (np.isfinite(self.trigger_starts) and 0.0 <= self.trigger_starts <= 1.0):
+            raise InputError(f"trigger_starts must be a share in [0, 1], got {self.trigger_starts}", file="--set")
         if not (np.isfinite(self.scale_floor) and self.scale_floor > 0):
             raise InputError(f"scale_floor must be a positive number, got {self.scale_floor}", file="--set")
 
@@ -244,9 +254,12 @@ def scores(
     violation_time: np.ndarray,
     horizon: float,
     near: np.ndarray | None = None,
+    credit: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Each rollout's score (the module's text): satisfied ``2 + tanh(rho)``, violated ``t_v / T + tanh(rho)``,
-    or with ``near`` (the averaged robustness, ``score=mean``) violated ``t_v / T + tanh(near)`` (below 2 still).
+    or with ``near`` (the averaged robustness, ``score=mean``) violated ``t_v / T + tanh(near)`` (below 2 still),
+    or with ``credit`` (the credit ``c`` and the non-vacuous robustness ``n``, ``score=credit``) violated
+    ``c + n / (1 + |n|)`` (in ``[-1, 1]``: no violation time).
 
     >>> s = scores(np.array([True, False, False, False]), np.array([0.5, -0.1, -0.1, -np.inf]),
     ...            np.array([np.nan, 1.0, 3.0, 3.0]), 4.0)
@@ -260,6 +273,10 @@ def scores(
         miss = np.tanh(np.minimum(rho, 0.0))
     else:
         miss = np.tanh(np.nan_to_num(np.asarray(near, dtype=float), nan=-np.inf))
+    if credit is not None:
+        c = np.nan_to_num(np.asarray(credit[0], dtype=float), nan=0.0)
+        n = np.nan_to_num(np.asarray(credit[1], dtype=float), nan=-np.inf, posinf=1e300, neginf=-1e300)
+        return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), c + n / (1.0 + np.abs(n)))
     return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), late + miss)
 
 
@@ -399,6 +416,47 @@ class SearchRuns:
         return np.array([[rng.uniform(lo, hi) for lo, hi in self.init_ranges] for _ in range(count)])
 
     @property
+    def _triggers(self) -> list[Any]:
+        """The propositional antecedents of the judged formula's implications (for
+        :attr:`SearchSettings.trigger_starts`)."""
+        if not hasattr(self, "_trigger_list"):
+            from mitlc.spec import ast as A
+
+            found: list[Any] = []
+            formula = self.spec.monitor_formula
+            for node in A.walk(formula) if formula is not None else ():
+                temporal = A.Eventually | A.Globally | A.Until | A.Release | A.WeakUntil
+                if (
+                    isinstance(node, A.Implies)
+                    and not any(isinstance(m, temporal) for m in A.walk(node.left))
+                    and node.left not in found
+                ):
+                    found.append(node.left)
+            self._trigger_list = found
+        return self._trigger_list
+
+    def _draw_triggered(self, rng: np.random.Generator, count: int, batch: int = 4096, tries: int = 20) -> np.ndarray:
+        """``count`` states where an antecedent of :attr:`_triggers` holds (each a uniform draw over the plant's box,
+        kept where it holds, the antecedent drawn in turn); the ``init`` box's where none is found."""
+        from mitlc.monitor.offline import monitor
+
+        lo = np.array([v.lo for v in self.plant.state], dtype=float)
+        hi = np.array([v.hi for v in self.plant.state], dtype=float)
+        unbounded = ~(np.isfinite(lo) & np.isfinite(hi))  # such a variable is drawn from its init range
+        lo[unbounded] = np.array([r[0] for r in self.init_ranges])[unbounded]
+        hi[unbounded] = np.array([r[1] for r in self.init_ranges])[unbounded]
+        out = self._draw(rng, count)
+        for i in range(count):
+            which = self._triggers[int(rng.integers(len(self._triggers)))]
+            for _ in range(tries):
+                x = lo + (hi - lo) * rng.random((batch, len(lo)))
+                ok = monitor(self.spec, x[:, None, :], self.dt, which, blame=False).satisfied
+                if ok.any():
+                    out[i] = x[int(np.flatnonzero(ok)[0])]
+                    break
+        return out
+
+    @property
     def settable(self) -> bool:
         """Whether a rollout may start anywhere (mitlc's own plants) or only where a reset put the copies
         (a Gymnasium environment: :meth:`sample_init`)."""
@@ -417,6 +475,10 @@ class SearchRuns:
         R = len(rngs)
         if self._sim is None:
             x0 = np.stack([self._draw(rngs[r], S) for r in range(R)])  # (R, S, n)
+            k = int(round(self.settings.trigger_starts * S))
+            if k and self._triggers:
+                for r in range(R):
+                    x0[r, S - k :] = self._draw_triggered(rngs[r], k)
             return np.repeat(x0, P, axis=0).reshape(R * P * S, -1)
         seeds = [[int(rngs[r].integers(2**63)) for _ in range(S)] for r in range(R)]
         gens = [np.random.default_rng(seeds[r][s]) for r in range(R) for _ in range(P) for s in range(S)]
@@ -434,7 +496,12 @@ class SearchRuns:
                 raise TrainingError("the search's judge gave no averaged robustness (score=mean)")
         else:
             verdict = judge(states, self.dt)
-        return scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near)
+        credit = None
+        if self.settings.score == "credit":  # computed here from the spec's formula, beside the judge's verdict
+            from mitlc.monitor.offline import credit_score
+
+            credit = credit_score(self.spec, states, self.dt, self.spec.monitor_formula)
+        return scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near, credit)
 
     def train(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
         """``trials`` generations of every run's search; ``progress(done, total)`` after each.

@@ -74,6 +74,7 @@ __all__ = [
     "needed_variables",
     "judged_formula",
     "mean_robustness",
+    "credit_score",
     "window_mean",
     "TIME_TOL",
 ]
@@ -859,3 +860,230 @@ def signals(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None
     """
     ev, f = _prepare(spec, states, dt, formula)
     return {str(node): ev.sig(node, REAL) for node in A.walk(f)}
+
+
+# ----------------------------------------------------------------- credit and the non-vacuous robustness
+#
+# Two more scores for a policy search (mitlc.learn.search, ``score = credit``), where the robustness and its
+# average fail a bounded response ``G (a -> F[0,d] b)``: a search paid by the robustness hugs a boundary
+# (skims ``a``'s region from outside, or grazes it and never goes on to ``b``: ``max(-rho(a), rho(F b))`` is
+# ``a``'s small depth there, whatever the trace does after), and paid by the violation time it postpones
+# the trigger ``a``, which postpones the deadline.
+#
+# * The **credit** of a trace is in [0, 1]: an atom's truth (0 or 1), ``!`` one less the child's, ``&`` the
+#   mean of its sides' (each conjunct met counts), ``|`` the larger, ``F`` the largest over its window (0 where
+#   it is empty: strong), ``G`` the window's mean (1 where it is empty: weak), ``U`` the monitor's max-min
+#   until over credits, and ``a -> b`` ``b``'s credit where ``a`` holds and one half where it does not (a
+#   vacuous instance earns half: no more than an instance whose response was met, no less than one missed).
+# * The **non-vacuous robustness** is the robustness with ``a -> b`` scored by ``b``'s robustness where ``a``
+#   holds (how near the response came: a trace that reaches ``a`` and heads for ``b`` gains as it nears it)
+#   and as the robustness does elsewhere.
+#
+# Neither is a verdict (the search orders satisfied traces above all others by the verdict itself).
+
+VACUOUS_CREDIT = 0.5
+"""The credit of an implication's instance whose antecedent does not hold."""
+
+
+@singledispatch
+def _credit(f: A.Formula, ev: _Eval) -> np.ndarray:
+    """The ``(R, N+1)`` credit signal of ``f`` (its operands' from the cache)."""
+    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+
+
+def _csig(f: A.Formula, ev: _Eval) -> np.ndarray:
+    out = ev._cache.get(("credit", f))
+    if out is None:
+        out = ev._fill(f, "credit", lambda node: _credit(node, ev))
+    return out
+
+
+def _credit_window_mean(x: np.ndarray, lo: int, hi: float) -> np.ndarray:
+    out = window_mean(x, lo, hi)
+    return np.where(np.isinf(out), 1.0, out)
+
+
+def _credit_until(a: np.ndarray, b: np.ndarray, lo: int, hi: float) -> np.ndarray:
+    return np.clip(until(a, b, lo, hi, REAL), 0.0, 1.0)
+
+
+@_credit.register
+def _(f: A.Const, ev: _Eval) -> np.ndarray:
+    return np.full((ev.R, ev.L), 1.0 if f.value else 0.0)
+
+
+@_credit.register
+def _(f: A.Atom, ev: _Eval) -> np.ndarray:
+    return ev.atom(f.name)[0].astype(float)
+
+
+@_credit.register
+def _(f: A.Not, ev: _Eval) -> np.ndarray:
+    return 1.0 - _csig(f.child, ev)
+
+
+@_credit.register
+def _(f: A.Weighted, ev: _Eval) -> np.ndarray:
+    return _csig(f.child, ev)
+
+
+@_credit.register
+def _(f: A.And, ev: _Eval) -> np.ndarray:
+    return (_csig(f.left, ev) + _csig(f.right, ev)) / 2.0
+
+
+@_credit.register
+def _(f: A.Or, ev: _Eval) -> np.ndarray:
+    return np.maximum(_csig(f.left, ev), _csig(f.right, ev))
+
+
+@_credit.register
+def _(f: A.Implies, ev: _Eval) -> np.ndarray:
+    return np.where(ev.sig(f.left, BOOL), _csig(f.right, ev), VACUOUS_CREDIT)
+
+
+@_credit.register
+def _(f: A.Iff, ev: _Eval) -> np.ndarray:
+    a, b = ev.sig(f.left, BOOL), ev.sig(f.right, BOOL)
+    ca, cb = _csig(f.left, ev), _csig(f.right, ev)
+    return (np.where(a, cb, VACUOUS_CREDIT) + np.where(b, ca, VACUOUS_CREDIT)) / 2.0
+
+
+@_credit.register
+def _(f: A.Eventually, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return np.maximum(window(_csig(f.child, ev), lo, hi, np.maximum, -np.inf), 0.0)
+
+
+@_credit.register
+def _(f: A.Globally, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return _credit_window_mean(_csig(f.child, ev), lo, hi)
+
+
+@_credit.register
+def _(f: A.Until, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return _credit_until(_csig(f.left, ev), _csig(f.right, ev), lo, hi)
+
+
+@_credit.register
+def _(f: A.Release, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return 1.0 - _credit_until(1.0 - _csig(f.left, ev), 1.0 - _csig(f.right, ev), lo, hi)
+
+
+@_credit.register
+def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    a, b = _csig(f.left, ev), _csig(f.right, ev)
+    glo, ghi = ev.offsets(_upto(f.interval))
+    return np.maximum(_credit_until(a, b, lo, hi), _credit_window_mean(a, glo, ghi))
+
+
+@singledispatch
+def _nonvac(f: A.Formula, ev: _Eval) -> np.ndarray:
+    """The ``(R, N+1)`` non-vacuous robustness signal of ``f``: the robustness's, but at an implication
+    (below); an operand's from the cache."""
+    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+
+
+def _nsig(f: A.Formula, ev: _Eval) -> np.ndarray:
+    out = ev._cache.get(("nonvacuous", f))
+    if out is None:
+        out = ev._fill(f, "nonvacuous", lambda node: _nonvac(node, ev))
+    return out
+
+
+def _implied(f: A.Formula, left: A.Formula, right: A.Formula, ev: _Eval) -> np.ndarray:
+    a, b = _nsig(left, ev), _nsig(right, ev)
+    return np.where(ev.sig(left, BOOL), b, np.maximum(-a, b))
+
+
+@_nonvac.register
+def _(f: A.Const, ev: _Eval) -> np.ndarray:
+    return REAL.full((ev.R, ev.L), np.inf if f.value else -np.inf)
+
+
+@_nonvac.register
+def _(f: A.Atom, ev: _Eval) -> np.ndarray:
+    return ev.atom(f.name)[1].astype(float)
+
+
+@_nonvac.register
+def _(f: A.Not, ev: _Eval) -> np.ndarray:
+    return -_nsig(f.child, ev)
+
+
+@_nonvac.register
+def _(f: A.Weighted, ev: _Eval) -> np.ndarray:
+    return _nsig(f.child, ev)
+
+
+@_nonvac.register
+def _(f: A.And, ev: _Eval) -> np.ndarray:
+    return np.minimum(_nsig(f.left, ev), _nsig(f.right, ev))
+
+
+@_nonvac.register
+def _(f: A.Or, ev: _Eval) -> np.ndarray:
+    return np.maximum(_nsig(f.left, ev), _nsig(f.right, ev))
+
+
+@_nonvac.register
+def _(f: A.Implies, ev: _Eval) -> np.ndarray:
+    return _implied(f, f.left, f.right, ev)
+
+
+@_nonvac.register
+def _(f: A.Iff, ev: _Eval) -> np.ndarray:
+    return np.minimum(_implied(f, f.left, f.right, ev), _implied(f, f.right, f.left, ev))
+
+
+@_nonvac.register
+def _(f: A.Eventually, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return window(_nsig(f.child, ev), lo, hi, np.maximum, -np.inf)
+
+
+@_nonvac.register
+def _(f: A.Globally, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return window(_nsig(f.child, ev), lo, hi, np.minimum, np.inf)
+
+
+@_nonvac.register
+def _(f: A.Until, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return until(_nsig(f.left, ev), _nsig(f.right, ev), lo, hi, REAL)
+
+
+@_nonvac.register
+def _(f: A.Release, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    return -until(-_nsig(f.left, ev), -_nsig(f.right, ev), lo, hi, REAL)
+
+
+@_nonvac.register
+def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
+    lo, hi = ev.offsets(f.interval)
+    a, b = _nsig(f.left, ev), _nsig(f.right, ev)
+    glo, ghi = ev.offsets(_upto(f.interval))
+    return np.maximum(until(a, b, lo, hi, REAL), window(a, glo, ghi, np.minimum, np.inf))
+
+
+def credit_score(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The credit and the non-vacuous robustness at time 0 of each trace, two ``(R,)`` arrays (the section
+    above). ``states``, ``dt`` and ``formula`` as :func:`monitor`'s.
+
+    >>> from mitlc.spec.parse import parse_spec
+    >>> spec = parse_spec("prop a = x > 1\\nprop b = y > 1\\nformula G[0,1] (a -> F[0,1] b)")
+    >>> trace = {"x": np.array([[0.0, 1.2, 0.0]]), "y": np.array([[0.0, 0.0, -3.0]])}
+    >>> c, n = credit_score(spec, trace, dt=0.5)
+    >>> c.round(4).tolist(), n.round(4).tolist()   # one instance missed, two vacuous; b's best is 1 short
+    ([0.3333], [-1.0])
+    >>> monitor(spec, trace, dt=0.5).robustness.round(4).tolist()   # the robustness: a's depth alone
+    [-0.2]
+    """
+    ev, f = _prepare(spec, states, dt, formula)
+    return _csig(f, ev)[:, 0].astype(float), _nsig(f, ev)[:, 0].astype(float)
