@@ -281,21 +281,17 @@ def train_search_task(job: tuple) -> dict:
     feedback, judged by the monitor; ``trials`` None: its default generations); the record the page reads."""
     name, spec_path, seed, runs, trials, sets, options, *more = job
     workers = int(more[1]) if len(more) > 1 else 1
-    from mitlc.cli.train import _judge
+    from mitlc.cli.train import _judge, _monitor_judge
     from mitlc.learn.search import SearchRuns, SearchSettings, default_generations
     from mitlc.learn.settings import parse_assignments
-    from mitlc.monitor.offline import monitor
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec
 
     spec = load_spec(spec_path)
     rs = compile_spec(spec, CompileOptions.from_spec(spec, **dict(options)))
 
-    def judge(states: np.ndarray, dt: float, mean: bool = False):
-        return monitor(spec, states, dt, spec.monitor_formula, mean=mean)
-
     settings = SearchSettings(**parse_assignments(SearchSettings, list(sets)))
-    agent = SearchRuns(rs, runs, seed, settings, judge, workers=workers)
+    agent = SearchRuns(rs, runs, seed, settings, _monitor_judge(spec), workers=workers)  # as mitlc train judges
     trials = trials or default_generations(agent.n_steps)
     t0 = time.perf_counter()
     agent.train(trials)

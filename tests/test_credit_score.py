@@ -79,12 +79,10 @@ formula G[0,1] (at_a -> F[0,2] at_b) & F[0,3] at_b
 
 
 def _search(**kw) -> SearchRuns:
+    from mitlc.cli.train import _monitor_judge  # the judge mitlc train gives the search: it gives the credit
+
     spec = parse_spec(TRIGGERED)
-
-    def judge(states: np.ndarray, dt: float, mean: bool = False):
-        return monitor(spec, states, dt, spec.monitor_formula, mean=mean, blame=False)
-
-    return SearchRuns(compile_spec(spec), 3, 0, SearchSettings(**kw), judge)
+    return SearchRuns(compile_spec(spec), 3, 0, SearchSettings(**kw), _monitor_judge(spec))
 
 
 def test_trigger_starts_put_a_share_of_the_starts_where_the_antecedent_holds() -> None:
@@ -117,3 +115,32 @@ def test_a_search_scored_by_credit_trains_and_reloads_its_settings() -> None:
     assert np.all(sr.returns <= 3.0) and np.all(sr.returns >= -1.0)
     again = SearchSettings.from_dict(sr.settings.to_dict())
     assert again == sr.settings
+
+
+def test_score_credit_with_a_judge_that_gives_no_credit_is_one_error() -> None:
+    """The credit comes from the judge, as the averaged robustness does (the search imports no monitor)."""
+    from mitlc.errors import TrainingError
+
+    spec = parse_spec(TRIGGERED)
+
+    def judge(states: np.ndarray, dt: float, mean: bool = False):
+        return monitor(spec, states, dt, spec.monitor_formula, mean=mean, blame=False)
+
+    sr = SearchRuns(compile_spec(spec), 2, 0, SearchSettings(score="credit", popsize=4), judge)
+    with pytest.raises(TrainingError, match="no credit"):
+        sr.train(1)
+
+
+def test_the_antecedent_is_evaluated_as_the_monitor_reads_it() -> None:
+    """_holds (the trigger starts' test, on the propositions' predicates) against the monitor on one-sample
+    traces, for propositional formulas over the spec's propositions, an angle past pi included."""
+    spec = parse_spec(
+        "plant unicycle\ninit x in [-0.4, 0.4], y in [-1.6, -1.4], theta in [-0.1, 0.1]\nhorizon 3\n"
+        "prop a = x > 0.2\nprop b = y < -0.5\nprop c = abs(theta) < 1\nformula G (a -> F b)\n"
+    )
+    sr = SearchRuns(compile_spec(spec), 1, 0, SearchSettings(), lambda s, dt, mean=False: None)
+    x = np.random.default_rng(5).uniform(-7, 7, size=(400, 3))
+    for text in ("a", "!a", "a & b", "a | !c", "(a -> b) & c", "(a <-> c) | false", "true & !(b | c)"):
+        node = parse_spec(spec.source.replace("G (a -> F b)", text)).formula
+        want = monitor(spec, x[:, None, :], sr.dt, node, blame=False).satisfied
+        assert sr._holds(node, x).tolist() == want.tolist(), text

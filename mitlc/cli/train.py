@@ -647,6 +647,12 @@ def _monitor_judge(spec):
         # the search reads no failing part; with score=mean it asks for the averaged robustness
         return monitor(spec, states, dt, spec.monitor_formula, blame=False, mean=mean)
 
+    def credit(states: np.ndarray, dt: float):  # score=credit: the credit and the non-vacuous robustness
+        from mitlc.monitor.offline import credit_score
+
+        return credit_score(spec, states, dt, spec.monitor_formula)
+
+    judge.credit = credit  # type: ignore[attr-defined]
     return judge
 
 

@@ -435,11 +435,36 @@ class SearchRuns:
             self._trigger_list = found
         return self._trigger_list
 
+    def _holds(self, node: Any, x: np.ndarray) -> np.ndarray:
+        """Where the propositional formula ``node`` (an antecedent of :attr:`_triggers`) holds on the states
+        ``x`` ``(B, n)``: its propositions' predicates evaluated on them, an angle wrapped as the monitor
+        wraps it."""
+        from mitlc.spec import ast as A
+        from mitlc.spec import predicates as P
+
+        if isinstance(node, A.Const):
+            return np.full(len(x), bool(node.value))
+        if isinstance(node, A.Atom):
+            pred = node.pred if node.pred is not None else self.spec.prop(node.name).pred
+            env = {v.name: (wrap_angle(x[:, i]) if v.periodic else x[:, i]) for i, v in enumerate(self.plant.state)}
+            truth: np.ndarray = P.evaluate(pred, env).astype(bool)  # type: ignore[arg-type]
+            return np.broadcast_to(truth, (len(x),))
+        if isinstance(node, A.Not):
+            return ~self._holds(node.child, x)
+        if isinstance(node, A.Weighted):
+            return self._holds(node.child, x)
+        if isinstance(node, A.And | A.Or | A.Implies | A.Iff):
+            a, b = self._holds(node.left, x), self._holds(node.right, x)
+            if isinstance(node, A.And):
+                return a & b
+            if isinstance(node, A.Or):
+                return a | b
+            return (~a | b) if isinstance(node, A.Implies) else (a == b)
+        raise TypeError(f"not a propositional formula: {node}")  # _triggers holds no temporal operator
+
     def _draw_triggered(self, rng: np.random.Generator, count: int, batch: int = 4096, tries: int = 20) -> np.ndarray:
         """``count`` states where an antecedent of :attr:`_triggers` holds (each a uniform draw over the plant's box,
         kept where it holds, the antecedent drawn in turn); the ``init`` box's where none is found."""
-        from mitlc.monitor.offline import monitor
-
         lo = np.array([v.lo for v in self.plant.state], dtype=float)
         hi = np.array([v.hi for v in self.plant.state], dtype=float)
         unbounded = ~(np.isfinite(lo) & np.isfinite(hi))  # such a variable is drawn from its init range
@@ -450,7 +475,7 @@ class SearchRuns:
             which = self._triggers[int(rng.integers(len(self._triggers)))]
             for _ in range(tries):
                 x = lo + (hi - lo) * rng.random((batch, len(lo)))
-                ok = monitor(self.spec, x[:, None, :], self.dt, which, blame=False).satisfied
+                ok = self._holds(which, x)
                 if ok.any():
                     out[i] = x[int(np.flatnonzero(ok)[0])]
                     break
@@ -497,10 +522,10 @@ class SearchRuns:
         else:
             verdict = judge(states, self.dt)
         credit = None
-        if self.settings.score == "credit":  # computed here from the spec's formula, beside the judge's verdict
-            from mitlc.monitor.offline import credit_score
-
-            credit = credit_score(self.spec, states, self.dt, self.spec.monitor_formula)
+        if self.settings.score == "credit":  # the judge computes the credit only when asked
+            credit = getattr(judge, "credit", lambda states, dt: None)(states, self.dt)
+            if credit is None:
+                raise TrainingError("the search's judge gives no credit (score=credit)")
         return scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near, credit)
 
     def train(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
@@ -527,7 +552,6 @@ class SearchRuns:
 
     def _train_forked(self, trials: int, progress: Callable[[int, int], None] | None, parts: int) -> None:
         """:meth:`train` over ``parts`` forked processes (see there)."""
-        import signal
         from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
@@ -537,9 +561,7 @@ class SearchRuns:
         done = ctx.Array("i", parts, lock=False)  # generations each part has finished, for the progress
         global _FORKED
         _FORKED = (self, cuts, done)
-        pool = ProcessPoolExecutor(
-            parts, mp_context=ctx, initializer=signal.signal, initargs=(signal.SIGINT, signal.SIG_IGN)
-        )
+        pool = ProcessPoolExecutor(parts, mp_context=ctx, initializer=forked_child)
         try:
             futures = [pool.submit(_train_part, i, trials) for i in range(parts)]
             shown = -1
@@ -751,6 +773,20 @@ def _fork_context() -> Any:
         return multiprocessing.get_context("fork")
     except ValueError:  # pragma: no cover - not POSIX
         return None
+
+
+def forked_child() -> None:
+    """What a process mitlc forks to train in does first (the initializer of its pools): leave Ctrl-C to the
+    parent, which stops it, and hold one core, its BLAS and LAPACK thread pools set to one thread
+    (threadpoolctl), so that ``workers`` such processes share the cores instead of each spinning a pool."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a dependency; a trimmed install trains, only slower
+        return
+    threadpool_limits(1)
 
 
 def _stop(pool: Any) -> None:

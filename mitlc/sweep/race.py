@@ -321,11 +321,10 @@ def _raced_in_processes(
     process, the rest ``workers`` at a time in forked processes (``one(k, alone=True)``), a search's
     learner rebuilt here (``learner(k)``) with the trained state its process sends back. Closing the
     generator (a design won at once, an error, an interrupt) stops the processes still racing."""
-    import signal
     from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
-    from mitlc.learn.search import _stop
+    from mitlc.learn.search import _stop, forked_child
 
     if progress is not None:
         progress(0, n, label(0))
@@ -335,8 +334,7 @@ def _raced_in_processes(
     pool = ProcessPoolExecutor(
         min(workers, n - 1),
         mp_context=_fork_context(),
-        initializer=signal.signal,
-        initargs=(signal.SIGINT, signal.SIG_IGN),
+        initializer=forked_child,
     )
     try:
         futures = {k: pool.submit(_race_design, k) for k in range(1, n)}
