@@ -177,7 +177,7 @@ def test_a_real_race_in_processes_is_the_race_in_one_to_the_bit() -> None:
         return SearchRuns(rs, runs, 0, SearchSettings(**changes), _monitor_judge(spec), workers=2)
 
     got = [
-        race(build, greedy_verdicts, SacpnSettings(kernel="numpy"), 8, 20, 0, search=search, generations=3, workers=w)
+        race(build, greedy_verdicts, SacpnSettings(kernel="numpy"), 16, 20, 0, search=search, generations=3, workers=w)
         for w in (1, 2)
     ]
     assert got[0] is not None and got[1] is not None
@@ -225,3 +225,30 @@ def test_a_race_process_that_dies_is_one_training_error_naming_workers() -> None
     with pytest.raises(TrainingError, match="died") as err:
         race(build, judge, SacpnSettings(), 30, 500, 0, search=search, generations=100, workers=2)
     assert "--workers 1" in (err.value.hint or "")
+
+
+def test_a_warning_raised_in_a_race_process_is_raised_here() -> None:
+    """numpy's overflow in a design raced in a process of its own reaches this process's warnings (where
+    mitlc train says it once), as if the design had raced here; a short race races here."""
+    import warnings
+
+    class Loud(Stand):
+        def train(self, trials: int) -> None:
+            warnings.warn("overflow encountered in exp", RuntimeWarning, stacklevel=1)
+            self.trained = trials
+
+    def build(settings, runs, seed):
+        return Loud("sacpn", (False,) * runs, 0.0)
+
+    def search(runs, changes):
+        return Stand(str(changes), (False,) * runs, 0.0)
+
+    def judge(agent):
+        return np.array(agent.ok), np.zeros(len(agent.ok))
+
+    for runs in (30, 8):
+        with warnings.catch_warnings(record=True) as got:
+            warnings.simplefilter("always")
+            race(build, judge, SacpnSettings(), runs, 500, 0, search=search, generations=100, workers=2)
+        texts = [str(w.message) for w in got if issubclass(w.category, RuntimeWarning)]
+        assert texts and set(texts) == {"overflow encountered in exp"}, (runs, texts)

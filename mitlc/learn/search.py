@@ -591,8 +591,10 @@ class SearchRuns:
         if progress is not None:
             for g in range(max(shown, 0) + 1, trials + 1):
                 progress(g, trials)
-        self.weights = np.concatenate([w for w, _ in results])
-        self.returns = np.concatenate([r for _, r in results])
+        for _, warned in results:
+            raise_again(warned)
+        self.weights = np.concatenate([w for (w, _), _ in results])
+        self.returns = np.concatenate([r for (_, r), _ in results])
         self.trial += trials
 
     def _train_runs(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
@@ -796,16 +798,41 @@ def _stop(pool: Any) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _train_part(i: int, trials: int) -> tuple[np.ndarray, np.ndarray]:
-    """In a forked process: part ``i`` of :data:`_FORKED`'s runs, trained; its gains and fitness."""
+def _train_part(i: int, trials: int) -> tuple[tuple[np.ndarray, np.ndarray], list]:
+    """In a forked process: part ``i`` of :data:`_FORKED`'s runs, trained; its gains and fitness, and the
+    warnings it raised (:func:`caught`)."""
     search, cuts, done = _FORKED
     part = search._part(int(cuts[i]), int(cuts[i + 1]))
 
     def tick(g: int, total: int) -> None:
         done[i] = g
 
-    part._train_runs(trials, tick)
-    return part.weights, part.returns
+    def train() -> tuple[np.ndarray, np.ndarray]:
+        part._train_runs(trials, tick)
+        return part.weights, part.returns
+
+    return caught(train)
+
+
+def caught(fn: Callable[[], Any]) -> tuple[Any, list]:
+    """In a forked process: ``fn()`` and the warnings it raised, each place once (text, category, file,
+    line), for the parent to raise again (:func:`raise_again`): a warning raised in the process would
+    otherwise be lost with it (``mitlc train`` says numpy's overflows once, at its end)."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as got:
+        warnings.simplefilter("always")
+        out = fn()
+    seen = {(str(w.message), w.category, w.filename, w.lineno): None for w in got}
+    return out, list(seen)
+
+
+def raise_again(warned: list) -> None:
+    """The warnings a forked process raised (:func:`caught`), raised here, where they were raised there."""
+    import warnings
+
+    for text, category, filename, lineno in warned:
+        warnings.warn_explicit(text, category, filename, lineno)
 
 
 def _damaged(where: str, why: str) -> InputError:

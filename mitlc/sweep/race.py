@@ -72,6 +72,10 @@ EARLY_WIN_RUNS = RACE_RUNS
 runs), a clean sweep says too little (2 of 2 comes 64 % of the time to a design that satisfies 80 %
 of its runs), so every design races."""
 
+MIN_FORKED_RUNS = 4
+"""The fewest race runs a design races on in a process of its own (``workers`` above 1): a race of fewer
+(a training of under 13 runs) is short, and starting processes for it costs more than it saves."""
+
 RACE_SHARE = 0.5
 """The race's trials as a share of the training's."""
 
@@ -220,7 +224,8 @@ def race(
     ``judge(learner)`` says which of its runs' final greedy policies satisfy the spec, and their greedy
     rollouts' returns.
 
-    With ``workers`` above 1 (and ``fork``: not on Windows) the first design races here as ever (a
+    With ``workers`` above 1, at least :data:`MIN_FORKED_RUNS` race runs (a training of 13 runs or more)
+    and ``fork`` (not on Windows), the first design races here as ever (a
     search's runs split over its own processes) and, unless it wins at once, the designs after it race
     ``workers`` at a time in forked processes, in order, each alone (a search's runs in its one process):
     the same entries, winner and numbers as one process gives (each design draws only from its own
@@ -262,7 +267,7 @@ def race(
         entry = _run(agent, name, generations if k < len(searches) else t, judge)
         return entry, (agent if k < len(searches) else None)
 
-    if workers > 1 and _fork_context() is not None:
+    if workers > 1 and r >= MIN_FORKED_RUNS and _fork_context() is not None:
         raced = _raced_in_processes(one, learner, n, workers, progress, label)
     else:
         raced = _raced_here(one, n, progress, label)
@@ -324,7 +329,7 @@ def _raced_in_processes(
     from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
-    from mitlc.learn.search import _stop, forked_child
+    from mitlc.learn.search import _stop, forked_child, raise_again
 
     if progress is not None:
         progress(0, n, label(0))
@@ -342,12 +347,13 @@ def _raced_in_processes(
             if progress is not None:  # design k of n is next (its process may have started it already)
                 progress(k, n, label(k))
             try:
-                entry, state = futures[k].result()
+                (entry, state), warned = futures[k].result()
             except BrokenProcessPool:
                 raise TrainingError(
                     "a process racing the designs died (killed, or out of memory)",
                     hint="--workers 1 races them in this process",
                 ) from None
+            raise_again(warned)
             agent = None
             if state is not None:  # a search: its runs as its process trained them
                 agent = learner(k)
@@ -358,10 +364,16 @@ def _raced_in_processes(
         _stop(pool)
 
 
-def _race_design(k: int) -> tuple[Entry, Any]:
-    """In a forked process: design ``k`` of :data:`_RACING` raced; its entry and, a search's, its trained state."""
-    entry, agent = _RACING(k, alone=True)
-    return entry, (None if agent is None else agent.trained_state())
+def _race_design(k: int) -> tuple[tuple[Entry, Any], list]:
+    """In a forked process: design ``k`` of :data:`_RACING` raced; its entry and, a search's, its trained
+    state, and the warnings it raised (:func:`mitlc.learn.search.caught`)."""
+    from mitlc.learn.search import caught
+
+    def one() -> tuple[Entry, Any]:
+        entry, agent = _RACING(k, alone=True)
+        return entry, (None if agent is None else agent.trained_state())
+
+    return caught(one)
 
 
 def _run(agent: Any, name: str, trials: int, judge: Callable[[Any], tuple[np.ndarray, np.ndarray]]) -> Entry:
