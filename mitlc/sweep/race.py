@@ -246,10 +246,11 @@ def race(
     def won_early() -> bool:  # an early winner is the only entry at 1.0: the choice below picks it
         return r >= EARLY_WIN_RUNS and entries[-1].success >= 1.0
 
+    raced_in_order = (*searches, *todo)  # design k: a search while k < len(searches)
+
     def label(k: int) -> str:
-        if k < len(searches):
-            return f"{searches[k][0]} ({r} runs x {generations} generations)"
-        return f"{todo[k - len(searches)][0]} ({r} runs x {t} trials)"
+        each = f"{generations} generations" if k < len(searches) else f"{t} trials"
+        return f"{raced_in_order[k][0]} ({r} runs x {each})"
 
     def learner(k: int) -> Any:  # design k's learner, untrained; a plant SACPN cannot drive fails here
         if k < len(searches):
@@ -260,12 +261,13 @@ def race(
     def one(k: int, alone: bool = False) -> tuple[Entry, Any]:
         """Design ``k`` raced: its entry, and its learner if a search (``alone``: in a race process of
         its own, a search's runs trained in it, not split over more)."""
-        agent = learner(k)
-        if alone and k < len(searches):
+        agent, is_search = learner(k), k < len(searches)
+        if alone and is_search:
             agent.workers = 1
-        name = searches[k][0] if k < len(searches) else todo[k - len(searches)][0]
-        entry = _run(agent, name, generations if k < len(searches) else t, judge)
-        return entry, (agent if k < len(searches) else None)
+        entry = _run(agent, raced_in_order[k][0], generations if is_search else t, judge)
+        return entry, (agent if is_search else None)
+
+    from mitlc.learn.search import _fork_context
 
     if workers > 1 and r >= MIN_FORKED_RUNS and _fork_context() is not None:
         raced = _raced_in_processes(one, learner, n, workers, progress, label)
@@ -291,13 +293,6 @@ def race(
         return Race(won, settings, tuple(entries), r, t, generations, searched[best], skipped=skipped)
     k = best - len(searches)
     return Race(todo[k][0], replace(settings, **todo[k][1]), tuple(entries), r, t, g, skipped=skipped)
-
-
-def _fork_context() -> Any:
-    """multiprocessing's ``fork`` context, or None (:func:`mitlc.learn.search._fork_context`)."""
-    from mitlc.learn.search import _fork_context as fork_context
-
-    return fork_context()
 
 
 def _raced_here(
@@ -329,7 +324,7 @@ def _raced_in_processes(
     from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
-    from mitlc.learn.search import _stop, forked_child, raise_again
+    from mitlc.learn.search import _fork_context, _stop, forked_child, raise_again
 
     if progress is not None:
         progress(0, n, label(0))
