@@ -20,6 +20,7 @@ BASE = {"errors", "fileio", "limits"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     "limits": set(),
+    "cmaes": set(),
     "fileio": {"errors"},
     "cachefiles": {"errors", "fileio"},
     "npzfile": {"errors"},
@@ -29,11 +30,11 @@ ALLOWED: dict[str, set[str]] = {
     "hybrid": BASE | {"plants", "spec"},
     "monitor": BASE | {"npzfile", "plants", "spec"},
     "runtime": BASE | {"cachefiles", "npzfile", "spec", "petri"},
-    "learn": BASE | {"cachefiles", "npzfile", "plants", "spec", "petri", "hybrid", "runtime"},
+    "learn": BASE | {"cmaes", "cachefiles", "npzfile", "plants", "spec", "petri", "hybrid", "runtime"},
     "sweep": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn"},
     "gym": BASE | {"plants", "spec", "petri", "monitor", "runtime", "learn"},
-    "verify": BASE | {"plants", "spec", "monitor"},
-    "cli": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "runtime", "learn", "sweep", "gym", "verify"},
+    "verify": BASE | {"cmaes", "plants", "spec", "monitor"},
+    "cli": BASE | {"cmaes", "plants", "spec", "petri", "hybrid", "monitor", "runtime", "learn", "sweep", "gym", "verify"},
     "crm": {"gym"},  # mitlc/crm.py, the deprecation shim of mitlc.gym.crm: no stage imports it
 }
 """Stage -> the stages it may import."""

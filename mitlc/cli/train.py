@@ -665,7 +665,9 @@ def _train_search(spec, rs, runs, trials, seed, out, assignments, quiet, no_plot
     for w in rs.warnings:
         click.echo(w, err=True)
     try:
-        import cma  # noqa: F401  (the search's optimiser: say so before anything is written)
+        from mitlc.cmaes import load
+
+        load()  # the search's optimiser: say so before anything is written
     except ImportError:
         raise InputError(
             "the policy search runs CMA-ES from the cma package, a dependency of mitlc: pip install cma",

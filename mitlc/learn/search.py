@@ -599,8 +599,10 @@ class SearchRuns:
 
     def _train_runs(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
         """:meth:`train` in this process."""
+        from mitlc.cmaes import load
+
         try:
-            import cma
+            cma = load()
         except ImportError:
             raise InputError(
                 "the policy search runs CMA-ES from the cma package, a dependency of mitlc: pip install cma",

@@ -19,7 +19,7 @@ disturbances; :mod:`~mitlc.verify.rollout` rolls them out and judges them;
 loads the policy, prints and writes the files.
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.plants`,
-:mod:`mitlc.spec`, :mod:`mitlc.monitor`.
+:mod:`mitlc.spec`, :mod:`mitlc.monitor`, :mod:`mitlc.cmaes`.
 """
 
 from mitlc.verify.falsify import METHODS, Search, falsify

@@ -118,8 +118,10 @@ class _Ledger:
 
 
 def _cma(ledger: _Ledger, rng: np.random.Generator, start: np.ndarray | None, popsize: int | None) -> None:
+    from mitlc.cmaes import load
+
     try:
-        import cma
+        cma = load()
     except ImportError:
         raise InputError("CMA-ES needs the cma package: pip install 'mitlc[verify]'", file="--method") from None
     # CMA-ES needs two coordinates or more: a one-dimensional cube gets a coordinate nobody reads
