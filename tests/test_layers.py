@@ -34,7 +34,8 @@ ALLOWED: dict[str, set[str]] = {
     "sweep": BASE | {"plants", "spec", "petri", "hybrid", "monitor", "learn"},
     "gym": BASE | {"plants", "spec", "petri", "monitor", "runtime", "learn"},
     "verify": BASE | {"cmaes", "plants", "spec", "monitor"},
-    "cli": BASE | {"cmaes", "plants", "spec", "petri", "hybrid", "monitor", "runtime", "learn", "sweep", "gym", "verify"},
+    "cli": BASE
+    | {"cmaes", "plants", "spec", "petri", "hybrid", "monitor", "runtime", "learn", "sweep", "gym", "verify"},
     "crm": {"gym"},  # mitlc/crm.py, the deprecation shim of mitlc.gym.crm: no stage imports it
 }
 """Stage -> the stages it may import."""
