@@ -11,8 +11,8 @@ with their learning curves and rollouts. One folder per learner: :mod:`mitlc.lea
 compiled kernels (:mod:`~mitlc.learn.jitcache`) and figures (:mod:`~mitlc.learn.plots`).
 
 May import: :mod:`mitlc.errors`, :mod:`mitlc.fileio`, :mod:`mitlc.limits`, :mod:`mitlc.cachefiles`,
-:mod:`mitlc.cmaes`, :mod:`mitlc.npzfile`, :mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`, :mod:`mitlc.hybrid`,
-:mod:`mitlc.runtime` (never the monitor: the learners are judged by it, from a later stage).
+:mod:`mitlc.cmaes`, :mod:`mitlc.npzfile`, :mod:`mitlc.plants`, :mod:`mitlc.spec`, :mod:`mitlc.petri`,
+:mod:`mitlc.hybrid`, :mod:`mitlc.runtime` (never the monitor: the learners are judged by it, from a later stage).
 """
 
 from mitlc.learn.features import Axis, RbfFeatures
