@@ -3,6 +3,7 @@ compiled once per machine; anything the cache cannot hold compiles in memory as 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -43,28 +44,57 @@ def _factory(offset: float, n: int):
     return outer
 
 
-def test_module_source_flattens_closures_globals_and_numbers():
-    source, name = jitcache.module_source(_factory(0.25, 3), "test")
-    assert name == "outer"
-    assert "offset = 0.25" in source and "n = 3" in source and "SCALE = 2.5" in source
-    for fn in ("def helper(a, i):", "def inner(a, i):", "def outer(a):"):
-        assert fn in source
-    assert source.count("= _jit(") == 3
-    ns: dict = {}
-    exec(compile(source.replace("_jit = numba.njit(", "_jit = (lambda f: f) or numba.njit("), "<t>", "exec"), ns)
+def run_modules(modules: list[tuple[str, str]]) -> dict[str, dict]:
+    """The generated modules run as plain Python (``_jit`` the identity), each registered where the
+    modules after it import it from; their namespaces by module name."""
+    import types
+
+    spaces: dict[str, dict] = {}
+    try:
+        for name, source in modules:
+            mod = types.ModuleType(name)
+            sys.modules[name] = mod
+            code = source.replace("_jit = numba.njit(", "_jit = (lambda f: f) or numba.njit(")
+            exec(compile(code, f"<{name}>", "exec"), mod.__dict__)
+            spaces[name] = mod.__dict__
+    finally:
+        for name, _ in modules:
+            sys.modules.pop(name, None)
+    return spaces
+
+
+def test_one_module_per_function_named_by_its_text():
+    modules, top, name = jitcache.module_sources(_factory(0.25, 3), "test")
+    assert name == "outer" and top == modules[-1][0]
+    texts = dict(modules)
+    helper, inner, outer = (next(m for m, t in modules if f"def {f}(a" in t) for f in ("helper", "inner", "outer"))
+    assert [m for m, _ in modules] == [helper, inner, outer]  # a module after the modules it imports
+    assert "SCALE = 2.5" in texts[helper]
+    assert "offset = 0.25" in texts[inner] and f"from {helper} import helper" in texts[inner]
+    assert "n = 3" in texts[outer] and f"from {inner} import inner" in texts[outer]
+    assert all(t.count("= _jit(") == 1 for t in texts.values())
+    for module, text in modules:  # the name is the text's hash, and the text names its imports' modules
+        assert module == jitcache.MODULE_PREFIX + hashlib.sha256(text.encode()).hexdigest()[:24]
     a = np.array([1.0, 2.0, 4.0])
-    assert ns["outer"](a) == _factory(0.25, 3)(a)
+    assert run_modules(modules)[top]["outer"](a) == _factory(0.25, 3)(a)
+    assert jitcache.module_sources(_factory(0.25, 3), "test") == (modules, top, name)  # the same text each time
+    assert jitcache.module_sources(_factory(0.25, 3), "other versions")[1] != top
 
 
-def test_two_closures_of_one_factory_get_two_names():
+def test_two_closures_of_one_factory_share_the_function_they_both_call():
     a, b = _factory(0.25, 3), _factory(0.5, 3)
 
     def both(x):
         return a(x) + b(x)
 
-    source, _ = jitcache.module_source(both, "test")
-    assert "offset = 0.25" in source and "offset_2 = 0.5" in source
-    assert "def outer(a):" in source and "def outer_2(a):" in source
+    modules, top, _ = jitcache.module_sources(both, "test")
+    texts = dict(modules)
+    assert len(modules) == 6  # helper once; inner, outer twice each (their numbers differ); both
+    assert sum("def helper(a, i):" in t for t in texts.values()) == 1
+    assert sum("offset = 0.25" in t for t in texts.values()) == sum("offset = 0.5" in t for t in texts.values()) == 1
+    assert "import outer as a" in texts[top] and "import outer as b" in texts[top]  # named as both reads them
+    x = np.array([1.0, 2.0, 4.0])
+    assert run_modules(modules)[top]["both"](x) == a(x) + b(x)
 
 
 def test_what_cannot_be_written_is_refused():
@@ -76,7 +106,10 @@ def test_what_cannot_be_written_is_refused():
     def has_default(x, y=1):
         return x + y
 
-    for fn in (reads_a_dict, has_default, len):
+    def calls_itself(x):
+        return calls_itself(x - 1) if x > 0 else 0
+
+    for fn in (reads_a_dict, has_default, len, calls_itself):
         with pytest.raises(jitcache.Unwritable):
             jitcache.module_source(fn, "test")
 
@@ -88,7 +121,14 @@ def test_load_compiles_equal_results(tmp_path, monkeypatch):
     a = np.array([1.0, 2.0, 4.0])
     assert fn(a) == _factory(0.25, 3)(a)
     files = list((tmp_path / "kernels").glob("kernel_*.py"))
-    assert len(files) == 1 and not list((tmp_path / "kernels").glob(".kernel-*"))  # no temporary left
+    assert len(files) == 3 and not list((tmp_path / "kernels").glob(".kernel-*"))  # no temporary left
+    # a kernel that differs in one number: a new module for the functions that read it, and for those
+    # that call them; the helper is the one compiled already
+    other = jitcache.load(_factory(0.5, 3))
+    assert other is not None and other(a) == _factory(0.5, 3)(a)
+    assert len(list((tmp_path / "kernels").glob("kernel_*.py"))) == 5
+    helper = jitcache._LOADED[jitcache.module_sources(_factory(0.5, 3), jitcache._versions())[0][0][0]].helper
+    assert len(helper.signatures) == 1
 
 
 def test_no_cache_where_it_is_off_unwritable_or_damaged(tmp_path, monkeypatch):
@@ -98,14 +138,14 @@ def test_no_cache_where_it_is_off_unwritable_or_damaged(tmp_path, monkeypatch):
     blocked.write_text("not a folder")
     monkeypatch.setenv("MITLC_CACHE_DIR", str(blocked))
     assert jitcache.load(_factory(1.0, 2)) is None
-    monkeypatch.setenv("MITLC_CACHE_DIR", str(tmp_path / "c"))
-    source, _ = jitcache.module_source(_factory(3.0, 2), jitcache._versions())
-    import hashlib
-
-    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
-    (tmp_path / "c" / "kernels").mkdir(parents=True)
-    (tmp_path / "c" / "kernels" / f"kernel_{digest}.py").write_text(source + "x = 1\n")  # not what we wrote
-    assert jitcache.load(_factory(3.0, 2)) is None
+    for which, offset in ((1, 3.0), (-1, 4.0)):  # a damaged module the kernel imports, or its own
+        monkeypatch.setenv("MITLC_CACHE_DIR", str(tmp_path / f"c{offset}"))
+        modules, _, _ = jitcache.module_sources(_factory(offset, 2), jitcache._versions())
+        module, source = modules[which]
+        digest = module.removeprefix(jitcache.MODULE_PREFIX)
+        (tmp_path / f"c{offset}" / "kernels").mkdir(parents=True)
+        (tmp_path / f"c{offset}" / "kernels" / f"kernel_{digest}.py").write_text(source + "x = 1\n")  # not ours
+        assert jitcache.load(_factory(offset, 2)) is None
 
 
 TRAIN = """
