@@ -19,28 +19,28 @@ With ``--startup`` only whole processes, each the fastest of ``--repeat`` (at le
 (:mod:`mitlc.runtime.tablefile`); then n1's ``NetRuntime`` in this process, both ways.
 It prints timings; it asserts nothing about them.
 
-Measured with ``--startup --repeat 7`` on a loaded 2-core machine (Python 3.11, mitlc's ``.pyc``
+Measured with ``--startup --repeat 7`` on a quiet 2-core machine (Python 3.11, mitlc's ``.pyc``
 written by ``python -m compileall mitlc``: without them, as under ``PYTHONDONTWRITEBYTECODE=1``,
 every process compiles mitlc's modules again, some 0.07 s more), seconds and times the floor:
 
 ======================================  =======  ========
 process                                 seconds  x floor
 ======================================  =======  ========
-``python -c "import numpy"``              0.110     1.00
-``check``, 61 rows                        0.327     2.97
-``check``, 100k rows, pyarrow             0.315     2.86
-``check``, 100k rows, numpy reader        0.323     2.94
-``check --net`` p3, 100k rows             0.365     3.32
-``check`` n1, 61 rows                     0.282     2.56
-``check --net`` n1, tables built          0.586     5.32
-``check --net`` n1, tables kept           0.359     3.26
+``python -c "import numpy"``              0.104     1.00
+``check``, 61 rows                        0.226     2.16
+``check``, 100k rows, pyarrow             0.302     2.89
+``check``, 100k rows, numpy reader        0.352     3.37
+``check --net`` p3, 100k rows             0.332     3.18
+``check --net`` n1, tables built          0.437     4.18
+``check --net`` n1, tables kept           0.292     2.80
+``check`` n1, 61 rows                     0.233     2.23
 ======================================  =======  ========
 
-n1's ``NetRuntime``: tables built 125 ms, read from disk 8 ms. The floor itself moved between 0.11
-and 0.16 s from run to run; in the quietest run (floor 0.159 s) ``check`` on 100k rows was 2.09 x.
-What a short check spends past numpy's import (``python -X importtime``, fastest of 3): lark 20 ms
-and the parse of a spec 19 ms, click 12 ms, pyarrow 26 ms (its reading saves as much on 100k rows),
-mitlc's own modules 35 ms (``mitlc.spec.ast``'s fifteen frozen dataclasses 11 ms of it).
+n1's ``NetRuntime``: tables built 96.8 ms, read from disk 6.3 ms. pyarrow is imported for a CSV of
+2 MB or more only (:data:`mitlc.monitor.trace.ARROW_MIN_BYTES`), so a short check no longer pays its
+import. What a short check spends past numpy's import (``python -X importtime``): lark's import and
+the parse of a spec, click, mitlc's own modules (``mitlc.spec.ast``'s and ``mitlc.spec.predicates``'
+frozen dataclasses about 25 ms together).
 """
 
 from __future__ import annotations
