@@ -10,6 +10,7 @@ import pytest
 from mitlc.petri.compile import CompileOptions, compile_spec
 from mitlc.plants.base import PLANTS, wrap_angle
 from mitlc.runtime import NetRuntime
+from mitlc.runtime.tables import Tables
 from mitlc.spec.parse import parse_spec
 
 P1 = """
@@ -516,3 +517,55 @@ def test_timed_runtime_takes_its_trial_from_the_spec() -> None:
     bare = parse_spec("plant pendulum\nprop a = q > 0\nformula G[0,1] F[0,0.5] a\n")
     with pytest.raises((CompileError, ValueError), match="horizon"):
         NetRuntime(compile_spec(bare))
+
+
+def test_runtimes_of_one_compiled_net_tabulate_it_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A training builds a runtime per design it races and per search it judges, all on one compiled
+    net: the tables are built for the first and shared; another compile of the spec builds its own."""
+    import mitlc.runtime.netruntime as nr
+
+    built = []
+    real = nr.build_tables
+
+    def counting(rule, radix, rs):
+        built.append(rs)
+        return real(rule, radix, rs)
+
+    monkeypatch.setattr(nr, "build_tables", counting)
+    text = "plant pendulum\nprop up = abs(q) < 0.3\nprop fast = abs(qdot) > 4\nformula F G up & G !fast\n"
+    rs = compile_spec(parse_spec(text))
+    a, b = NetRuntime(rs), NetRuntime(rs, dt=0.1, steps=50)
+    assert built == [rs] and a.tables is b.tables
+    again = compile_spec(parse_spec(text))
+    c = NetRuntime(again)
+    assert built == [rs, again] and c.tables is not a.tables
+    assert np.array_equal(c.tables.next_code, a.tables.next_code) and np.array_equal(c.tables.reward, a.tables.reward)
+    x = np.array([[0.1, 0.0], [2.0, 5.0]])
+    code = a.reset_code(x.copy())
+    assert np.array_equal(code, b.reset_code(x.copy())) and np.array_equal(code, c.reset_code(x.copy()))
+
+
+def test_shared_tables_are_only_read() -> None:
+    """What every runtime of one compiled net shares is never written: a training on the numpy path
+    and the code-stepping calls run with the tables' arrays read-only."""
+    from mitlc.learn.sacpn import Sacpn, SacpnSettings
+
+    text = "plant pendulum\nhorizon 2\nprop up = abs(q) < 0.3\nprop fast = abs(qdot) > 4\nformula F G up & G !fast\n"
+    rs = compile_spec(parse_spec(text), CompileOptions(violations="counted"))
+    rt = NetRuntime(rs)
+    arrays = [a for a in (getattr(rt.tables, n) for n in Tables.__slots__) if isinstance(a, np.ndarray)]
+    assert len(arrays) >= 4
+    for a in arrays:
+        a.setflags(write=False)
+    try:
+        agent = Sacpn(rs, SacpnSettings(kernel="numpy", rbf=(4, 3), trial_s=0.5), runs=2, seed=0)
+        assert agent.runtime.tables is rt.tables
+        agent.train(3)
+        x = np.array([[0.1, 0.0], [2.0, 5.0]])
+        code = rt.reset_code(x.copy())
+        code1 = rt.step_code(code, x.copy(), 0.05)
+        rt.reward_code(code, code1)
+        rt.charge_code(code, code1)
+    finally:
+        for a in arrays:
+            a.setflags(write=True)

@@ -84,15 +84,36 @@ import numpy as np
 from mitlc.petri.compile import RewardSystem
 from mitlc.petri.net import eval_state
 from mitlc.runtime import obligation_kernel
+from mitlc.runtime import tables as tables_module
 from mitlc.runtime.atoms import compile_predicate, pack_atoms, scalar_atoms
 from mitlc.runtime.obligation_kernel import ObligationArrays
 from mitlc.runtime.obligations import Obligations
 from mitlc.runtime.rule import Rule, clock_ok
-from mitlc.runtime.tables import Radix, build_tables
+from mitlc.runtime.tables import Radix, Tables, build_tables
 from mitlc.spec import ast as A
 from mitlc.spec import predicates as P
 
 __all__ = ["NetRuntime"]
+
+
+_LAST_TABLES: tuple[RewardSystem, int, Tables | None] | None = None
+"""The last reward system a :class:`NetRuntime` tabulated in this process, the table limit then
+(:data:`mitlc.runtime.tables.MAX_TABLE`) and its tables: a training builds one runtime per design it
+races, per search it judges and for the training itself, all on the one compiled net (the cart-pole's
+sway, 1728 markings: 3.4 s a table), and the tables depend on nothing else; a forked race process
+inherits them. The tables are read, never written, by every user. (``tables_cache``'s runtimes, one
+per ``mitlc check --net``, read the disk's.)"""
+
+
+def _tables_of(rs: RewardSystem, build: Callable[[], Tables | None]) -> Tables | None:
+    """``build()`` (the tables of ``rs``'s net), or what it gave for this very ``rs`` (and limit) last time."""
+    global _LAST_TABLES
+    limit = tables_module.MAX_TABLE
+    if _LAST_TABLES is not None and _LAST_TABLES[0] is rs and _LAST_TABLES[1] == limit:
+        return _LAST_TABLES[2]
+    tables = build()
+    _LAST_TABLES = (rs, limit, tables)
+    return tables
 
 
 LIST_TABLE_LIMIT = 1 << 16
@@ -172,8 +193,8 @@ class NetRuntime:
 
             radix = self._radix
             self.tables = cached_tables(rs, lambda: build_tables(rule, radix, rs), radix.n_codes, len(rule.clocks))
-        else:
-            self.tables = build_tables(rule, self._radix, rs)
+        else:  # a training's runtimes share one net's tables (_LAST_TABLES)
+            self.tables = _tables_of(rs, lambda: build_tables(rule, self._radix, rs))
         self.compact = self.tables is not None and self.tables.compact
         """Whether codes index the reachable markings (compact tables) instead of the mixed radix."""
         self._clock_ends = np.zeros(0)
