@@ -699,47 +699,80 @@ def window_mean(x: np.ndarray, lo: int, hi: float) -> np.ndarray:
     return out
 
 
-@singledispatch
-def _mean(f: A.Formula, ev: _Eval) -> np.ndarray:
-    """The ``(R, N+1)`` averaged robustness signal of ``f`` (its operands' from the cache)."""
-    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+def _robustness_shaped(
+    kind: str, globally: Callable[[np.ndarray, int, float], np.ndarray]
+) -> tuple[Any, Callable[[A.Formula, _Eval], np.ndarray]]:
+    """``(node, sig)`` of a score shaped as the robustness: ``node(f, ev)`` the ``(R, N+1)`` signal of ``f``
+    (a ``singledispatch`` function with every operator registered but the implication and the
+    equivalence, which each score registers itself), ``sig(f, ev)`` it cached under ``kind``. Every
+    operator is the robustness's but ``G``'s window (and ``W``'s ``G`` part): ``globally(x, lo, hi)``."""
+
+    @singledispatch
+    def node(f: A.Formula, ev: _Eval) -> np.ndarray:
+        raise CompileError(f"cannot monitor formula node {type(f).__name__}")
+
+    def sig(f: A.Formula, ev: _Eval) -> np.ndarray:
+        out = ev._cache.get((kind, f))
+        if out is None:
+            out = ev._fill(f, kind, lambda n: node(n, ev))
+        return out
+
+    @node.register
+    def _(f: A.Const, ev: _Eval) -> np.ndarray:
+        return REAL.full((ev.R, ev.L), np.inf if f.value else -np.inf)
+
+    @node.register
+    def _(f: A.Atom, ev: _Eval) -> np.ndarray:
+        return ev.atom(f.name)[1].astype(float)
+
+    @node.register
+    def _(f: A.Not, ev: _Eval) -> np.ndarray:
+        return -sig(f.child, ev)
+
+    @node.register
+    def _(f: A.Weighted, ev: _Eval) -> np.ndarray:
+        return sig(f.child, ev)
+
+    @node.register
+    def _(f: A.And, ev: _Eval) -> np.ndarray:
+        return np.minimum(sig(f.left, ev), sig(f.right, ev))
+
+    @node.register
+    def _(f: A.Or, ev: _Eval) -> np.ndarray:
+        return np.maximum(sig(f.left, ev), sig(f.right, ev))
+
+    @node.register
+    def _(f: A.Eventually, ev: _Eval) -> np.ndarray:
+        lo, hi = ev.offsets(f.interval)
+        return window(sig(f.child, ev), lo, hi, np.maximum, -np.inf)
+
+    @node.register
+    def _(f: A.Globally, ev: _Eval) -> np.ndarray:
+        lo, hi = ev.offsets(f.interval)
+        return globally(sig(f.child, ev), lo, hi)
+
+    @node.register
+    def _(f: A.Until, ev: _Eval) -> np.ndarray:
+        lo, hi = ev.offsets(f.interval)
+        return until(sig(f.left, ev), sig(f.right, ev), lo, hi, REAL)
+
+    @node.register
+    def _(f: A.Release, ev: _Eval) -> np.ndarray:
+        lo, hi = ev.offsets(f.interval)
+        return -until(-sig(f.left, ev), -sig(f.right, ev), lo, hi, REAL)
+
+    @node.register
+    def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
+        lo, hi = ev.offsets(f.interval)
+        a, b = sig(f.left, ev), sig(f.right, ev)
+        glo, ghi = ev.offsets(_upto(f.interval))
+        return np.maximum(until(a, b, lo, hi, REAL), globally(a, glo, ghi))
+
+    return node, sig
 
 
-def _msig(f: A.Formula, ev: _Eval) -> np.ndarray:
-    out = ev._cache.get(("mean", f))
-    if out is None:
-        out = ev._fill(f, "mean", lambda node: _mean(node, ev))
-    return out
-
-
-@_mean.register
-def _(f: A.Const, ev: _Eval) -> np.ndarray:
-    return REAL.full((ev.R, ev.L), np.inf if f.value else -np.inf)
-
-
-@_mean.register
-def _(f: A.Atom, ev: _Eval) -> np.ndarray:
-    return ev.atom(f.name)[1].astype(float)
-
-
-@_mean.register
-def _(f: A.Not, ev: _Eval) -> np.ndarray:
-    return -_msig(f.child, ev)
-
-
-@_mean.register
-def _(f: A.Weighted, ev: _Eval) -> np.ndarray:
-    return _msig(f.child, ev)
-
-
-@_mean.register
-def _(f: A.And, ev: _Eval) -> np.ndarray:
-    return np.minimum(_msig(f.left, ev), _msig(f.right, ev))
-
-
-@_mean.register
-def _(f: A.Or, ev: _Eval) -> np.ndarray:
-    return np.maximum(_msig(f.left, ev), _msig(f.right, ev))
+_mean, _msig = _robustness_shaped("mean", window_mean)
+"""The averaged robustness signal of a formula (``_msig``: cached): G's window mean."""
 
 
 @_mean.register
@@ -751,38 +784,6 @@ def _(f: A.Implies, ev: _Eval) -> np.ndarray:
 def _(f: A.Iff, ev: _Eval) -> np.ndarray:
     a, b = _msig(f.left, ev), _msig(f.right, ev)
     return np.minimum(np.maximum(-a, b), np.maximum(a, -b))
-
-
-@_mean.register
-def _(f: A.Eventually, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return window(_msig(f.child, ev), lo, hi, np.maximum, -np.inf)
-
-
-@_mean.register
-def _(f: A.Globally, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return window_mean(_msig(f.child, ev), lo, hi)
-
-
-@_mean.register
-def _(f: A.Until, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return until(_msig(f.left, ev), _msig(f.right, ev), lo, hi, REAL)
-
-
-@_mean.register
-def _(f: A.Release, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return -until(-_msig(f.left, ev), -_msig(f.right, ev), lo, hi, REAL)
-
-
-@_mean.register
-def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    a, b = _msig(f.left, ev), _msig(f.right, ev)
-    glo, ghi = ev.offsets(_upto(f.interval))
-    return np.maximum(until(a, b, lo, hi, REAL), window_mean(a, glo, ghi))
 
 
 def mean_robustness(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> np.ndarray:
@@ -981,53 +982,14 @@ def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
     return np.maximum(_credit_until(a, b, lo, hi), _credit_window_mean(a, glo, ghi))
 
 
-@singledispatch
-def _nonvac(f: A.Formula, ev: _Eval) -> np.ndarray:
-    """The ``(R, N+1)`` non-vacuous robustness signal of ``f``: the robustness's, but at an implication
-    (below); an operand's from the cache."""
-    raise CompileError(f"cannot monitor formula node {type(f).__name__}")
-
-
-def _nsig(f: A.Formula, ev: _Eval) -> np.ndarray:
-    out = ev._cache.get(("nonvacuous", f))
-    if out is None:
-        out = ev._fill(f, "nonvacuous", lambda node: _nonvac(node, ev))
-    return out
+_nonvac, _nsig = _robustness_shaped("nonvacuous", lambda x, lo, hi: window(x, lo, hi, np.minimum, np.inf))
+"""The non-vacuous robustness signal of a formula (``_nsig``: cached): the robustness's, but at an
+implication (below)."""
 
 
 def _implied(f: A.Formula, left: A.Formula, right: A.Formula, ev: _Eval) -> np.ndarray:
     a, b = _nsig(left, ev), _nsig(right, ev)
     return np.where(ev.sig(left, BOOL), b, np.maximum(-a, b))
-
-
-@_nonvac.register
-def _(f: A.Const, ev: _Eval) -> np.ndarray:
-    return REAL.full((ev.R, ev.L), np.inf if f.value else -np.inf)
-
-
-@_nonvac.register
-def _(f: A.Atom, ev: _Eval) -> np.ndarray:
-    return ev.atom(f.name)[1].astype(float)
-
-
-@_nonvac.register
-def _(f: A.Not, ev: _Eval) -> np.ndarray:
-    return -_nsig(f.child, ev)
-
-
-@_nonvac.register
-def _(f: A.Weighted, ev: _Eval) -> np.ndarray:
-    return _nsig(f.child, ev)
-
-
-@_nonvac.register
-def _(f: A.And, ev: _Eval) -> np.ndarray:
-    return np.minimum(_nsig(f.left, ev), _nsig(f.right, ev))
-
-
-@_nonvac.register
-def _(f: A.Or, ev: _Eval) -> np.ndarray:
-    return np.maximum(_nsig(f.left, ev), _nsig(f.right, ev))
 
 
 @_nonvac.register
@@ -1038,38 +1000,6 @@ def _(f: A.Implies, ev: _Eval) -> np.ndarray:
 @_nonvac.register
 def _(f: A.Iff, ev: _Eval) -> np.ndarray:
     return np.minimum(_implied(f, f.left, f.right, ev), _implied(f, f.right, f.left, ev))
-
-
-@_nonvac.register
-def _(f: A.Eventually, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return window(_nsig(f.child, ev), lo, hi, np.maximum, -np.inf)
-
-
-@_nonvac.register
-def _(f: A.Globally, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return window(_nsig(f.child, ev), lo, hi, np.minimum, np.inf)
-
-
-@_nonvac.register
-def _(f: A.Until, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return until(_nsig(f.left, ev), _nsig(f.right, ev), lo, hi, REAL)
-
-
-@_nonvac.register
-def _(f: A.Release, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    return -until(-_nsig(f.left, ev), -_nsig(f.right, ev), lo, hi, REAL)
-
-
-@_nonvac.register
-def _(f: A.WeakUntil, ev: _Eval) -> np.ndarray:
-    lo, hi = ev.offsets(f.interval)
-    a, b = _nsig(f.left, ev), _nsig(f.right, ev)
-    glo, ghi = ev.offsets(_upto(f.interval))
-    return np.maximum(until(a, b, lo, hi, REAL), window(a, glo, ghi, np.minimum, np.inf))
 
 
 def credit_score(spec: Spec, states: Any, dt: float, formula: A.Formula | None = None) -> tuple[np.ndarray, np.ndarray]:
