@@ -583,6 +583,10 @@ _MARGIN_SOURCE = {
     "==": "-abs({a} - {b})",
     "!=": "abs({a} - {b})",
 }
+_COMPARE_SOURCE = {op: "{a} " + op + " {b}" for op in _MARGIN_SOURCE}
+_BINARY_SOURCE = {"+": "({} + {})", "-": "({} - {})", "*": "({} * {})", "/": "_divide({}, {})"}
+"""The generated predicate functions' text for each operator, looked up, never copied from the tree
+(as :mod:`mitlc.runtime.atoms`): an operator the parser would not give fails here, not in ``exec``."""
 
 
 def _literal(v: float) -> str:
@@ -603,12 +607,13 @@ def _operand_source(p: P.Pred, columns: dict[str, int]) -> str:
     if isinstance(p, P.Neg):
         return f"(-{_operand_source(p.arg, columns)})"
     if isinstance(p, P.BinOp):
-        a, b = _operand_source(p.left, columns), _operand_source(p.right, columns)
-        return f"_divide({a}, {b})" if p.op == "/" else f"({a} {p.op} {b})"
+        return _BINARY_SOURCE[p.op].format(_operand_source(p.left, columns), _operand_source(p.right, columns))
     if isinstance(p, P.Call):
         args = [_operand_source(a, columns) for a in p.args]
         if p.fn in ("abs", "sqrt"):
             return f"{'abs' if p.fn == 'abs' else '_sqrt'}({args[0]})"
+        if p.fn not in P.FUNCTIONS:
+            raise KeyError(p.fn)
         return f"float(_fn_{p.fn}({', '.join(args)}))"
     raise InputError(f"'{p}' is not a number")  # pragma: no cover - the parser checks operand types
 
@@ -628,7 +633,7 @@ def _pred_lines(p: P.Pred, columns: dict[str, int], lines: list[str], names: lis
         if len(p.ops) == 1:
             op, a, b = p.ops[0], values[0], values[1]
             lines += [
-                f"{t} = {a} {op} {b}",
+                f"{t} = {_COMPARE_SOURCE[op].format(a=a, b=b)}",
                 f"{r} = {_MARGIN_SOURCE[op].format(a=a, b=b)}",
                 f"if {r} != {r}: {r} = 0.0",
             ]
@@ -638,7 +643,7 @@ def _pred_lines(p: P.Pred, columns: dict[str, int], lines: list[str], names: lis
             names[0] += 1
             m = f"m{names[0]}"
             lines += [
-                f"{t} = ({a} {op} {b}) and {t}",
+                f"{t} = ({_COMPARE_SOURCE[op].format(a=a, b=b)}) and {t}",
                 f"{m} = {_MARGIN_SOURCE[op].format(a=a, b=b)}",
                 f"if {m} != {m}: {m} = 0.0",
                 f"{r} = min({r}, {m})",
