@@ -252,3 +252,45 @@ def test_a_warning_raised_in_a_race_process_is_raised_here() -> None:
             race(build, judge, SacpnSettings(), runs, 500, 0, search=search, generations=100, workers=2)
         texts = [str(w.message) for w in got if issubclass(w.category, RuntimeWarning)]
         assert texts and set(texts) == {"overflow encountered in exp"}, (runs, texts)
+
+
+def test_the_race_ticks_after_each_trial_and_generation_and_a_tick_that_raises_stops_it() -> None:
+    """``tick`` (the command line's: a Ctrl-C Python dropped while modules loaded) is called after every
+    generation of a search design and every trial of a SACPN design raced here; what it raises ends the race."""
+    from mitlc.cli.train import _monitor_judge
+    from mitlc.learn.search import SearchRuns, SearchSettings
+    from mitlc.petri.compile import compile_spec
+    from mitlc.spec.parse import parse_spec
+    from mitlc.sweep.race import RACE_SHARE, greedy_verdicts
+    from mitlc.sweep.task import sacpn_learner
+
+    spec = parse_spec(
+        "plant mass-damper\ninit q in [-0.5, 0.5], qdot = 0\nhorizon 2\nprop far = abs(q) > 0.8\nformula F[0,1.5] far\n"
+    )
+    rs = compile_spec(spec)
+
+    def build(settings, runs, seed):
+        return sacpn_learner(rs, settings, runs, seed)
+
+    def search(runs, changes):
+        return SearchRuns(rs, runs, 0, SearchSettings(**changes), _monitor_judge(spec))
+
+    ticks: list[int] = []
+
+    def counting() -> None:
+        ticks.append(1)
+
+    settings = SacpnSettings(kernel="numpy")
+    result = race(build, greedy_verdicts, settings, 8, 20, 0, search=search, generations=3, tick=counting)
+    assert result is not None and len(result.entries) == len(SEARCH_DESIGNS) + len(DESIGNS)  # 2 race runs each
+    assert len(ticks) == 3 * len(SEARCH_DESIGNS) + round(20 * RACE_SHARE) * len(DESIGNS)
+
+    def interrupted() -> None:
+        ticks.append(1)
+        if len(ticks) == 2:
+            raise KeyboardInterrupt
+
+    ticks.clear()
+    with pytest.raises(KeyboardInterrupt):
+        race(build, greedy_verdicts, settings, 8, 20, 0, search=search, generations=3, tick=interrupted)
+    assert len(ticks) == 2  # in the first search design's second generation

@@ -528,6 +528,7 @@ def train(
                         search=searcher,
                         generations=search_generations(trials),
                         workers=processes,
+                        tick=interrupt.check,  # a Ctrl-C dropped while modules loaded stops the race
                     )
                 if result is not None:
                     built, (settings, raced) = settings, (result.settings, result.record())

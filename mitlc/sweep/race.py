@@ -216,6 +216,7 @@ def race(
     search: Callable[[int, dict[str, Any]], Any] | None = None,
     generations: int = 0,
     workers: int = 1,
+    tick: Callable[[], None] | None = None,
 ) -> Race | None:
     """Race :data:`DESIGNS` (less the settings ``given``: :func:`designs`) on ``settings``, and the
     policy search when ``search`` is given, None when one design is left: ``build(settings, runs, seed)``
@@ -229,7 +230,11 @@ def race(
     search's runs split over its own processes) and, unless it wins at once, the designs after it race
     ``workers`` at a time in forked processes, in order, each alone (a search's runs in its one process):
     the same entries, winner and numbers as one process gives (each design draws only from its own
-    seeds), in about ``1 / workers`` of the time where no design wins at once."""
+    seeds), in about ``1 / workers`` of the time where no design wins at once.
+
+    ``tick()``, when given, is called after each trial or generation of a design raced in this process
+    (the command line's raises a Ctrl-C that Python dropped while modules loaded: a race's design
+    trains for minutes with no other check)."""
     r = max(1, min(RACE_RUNS, -(-runs // 4)))
     t = max(1, int(round(trials * RACE_SHARE)))
     todo = designs(set(given))
@@ -264,7 +269,7 @@ def race(
         agent, is_search = learner(k), k < len(searches)
         if alone and is_search:
             agent.workers = 1
-        entry = _run(agent, raced_in_order[k][0], generations if is_search else t, judge)
+        entry = _run(agent, raced_in_order[k][0], generations if is_search else t, judge, tick)
         return entry, (agent if is_search else None)
 
     from mitlc.learn.search import _fork_context
@@ -371,10 +376,19 @@ def _race_design(k: int) -> tuple[tuple[Entry, Any], list]:
     return caught(one)
 
 
-def _run(agent: Any, name: str, trials: int, judge: Callable[[Any], tuple[np.ndarray, np.ndarray]]) -> Entry:
-    """Train one design's ``agent`` for ``trials`` and judge it."""
+def _run(
+    agent: Any,
+    name: str,
+    trials: int,
+    judge: Callable[[Any], tuple[np.ndarray, np.ndarray]],
+    tick: Callable[[], None] | None = None,
+) -> Entry:
+    """Train one design's ``agent`` for ``trials`` (``tick()`` after each trial or generation) and judge it."""
     try:
-        agent.train(trials)
+        if tick is None:
+            agent.train(trials)
+        else:
+            agent.train(trials, lambda *_: tick())
     except TrainingError:  # every run of the design diverged: it loses (the training says so if it wins)
         return Entry(name, 0.0, float("-inf"))
     ok, returns = judge(agent)
