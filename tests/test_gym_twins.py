@@ -92,6 +92,70 @@ def test_a_twin_that_disagrees_is_not_used(monkeypatch):
     assert twin_for("Pendulum-v1", {}, vec) is None
 
 
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_pendulum_twins_kernel_physics_is_its_step(compiled):
+    """What SACPN's fused kernel steps a copy by (PendulumTwin.kernel_physics, one copy at a time, plain
+    Python or compiled by numba) gives the twin's numbers to the bit: actions beyond the torque's bounds,
+    and pumping that reaches the speed limit."""
+    from mitlc.learn.sacpn import kernel as fk
+
+    if compiled:
+        pytest.importorskip("numba")
+    jit = fk.jit if compiled else fk.identity
+    B = 6
+    envs = [gym.make("Pendulum-v1", disable_env_checker=True) for _ in range(B)]
+    for b, env in enumerate(envs):
+        env.reset(seed=b)
+    twin = PendulumTwin(envs[0].unwrapped, B)
+    twin.load(envs)
+    physics, consts, h, k = twin.kernel_physics()
+    physics = jit(physics)
+    states = twin.hidden()
+    assert states.shape == (B, h) == (B, 2)
+    obs_k = np.empty(k)
+    rng = np.random.default_rng(4)
+    fastest = 0.0
+    for step in range(400):
+        a = rng.uniform(-3.0, 3.0, size=(B, 1))
+        a[::2, 0] = np.where(states[::2, 1] >= 0, 2.5, -2.5)  # pump
+        a = a.astype(np.float32)
+        obs, _ = twin.step(a)
+        for b in range(B):
+            physics(states[b], a[b, 0], consts, obs_k)
+            assert np.array_equal(obs_k, obs[b].astype(float)), (step, b)
+        assert np.array_equal(states, twin.hidden())
+        fastest = max(fastest, float(np.abs(states[:, 1]).max()))
+    assert fastest == twin.max_speed  # the clip was exercised
+
+
+def test_only_the_pendulums_twin_steps_in_the_kernel():
+    spec = parse_spec(MC)
+    sim = spec.plant.simulator(spec.plant.params(), {})
+    assert sim.kernel_step(3) == "the twin of 'MountainCarContinuous-v0' has no kernel step"
+    sim = parse_spec(PEND).plant.simulator(parse_spec(PEND).plant.params(), {})
+    physics, consts, h, k = sim.kernel_step(3)
+    assert (h, k) == (2, 3) and consts[0] == 2.0  # the torque bound first, then the twin's
+
+
+def test_the_simulator_keeps_an_action_per_batch_size():
+    """Copies of two batch sizes stepped in turn (a loaded policy's kernel check builds its runs' batch,
+    then mitlc simulate resets fewer): each batch steps with its own actions, as a simulator of its own."""
+    spec = parse_spec(PEND)
+    sims = [spec.plant.simulator(spec.plant.params(), {}) for _ in range(3)]
+    both = sims[0]
+    x4 = both.reset([np.random.default_rng(s) for s in range(4)])
+    x2 = both.reset([np.random.default_rng(s) for s in range(2)])
+    y4 = sims[1].reset([np.random.default_rng(s) for s in range(4)])
+    y2 = sims[2].reset([np.random.default_rng(s) for s in range(2)])
+    for k in range(5):
+        both.step(x4, np.full(4, 0.3 * k))
+        both.step(x2, np.full(2, -0.5))
+        sims[1].step(y4, np.full(4, 0.3 * k))
+        sims[2].step(y2, np.full(2, -0.5))
+    np.testing.assert_array_equal(x4, y4)
+    np.testing.assert_array_equal(x2, y2)
+
+
 def _rollout(spec, seeds, steps):
     sim = spec.plant.simulator(spec.plant.params(), {r.var: (r.lo, r.hi) for r in spec.init})
     x = sim.reset([np.random.default_rng(s) for s in seeds])

@@ -252,16 +252,52 @@ def test_fallback_for_timed_obligations_with_compact_tables() -> None:
     agent.train(1)
 
 
+GYM_PENDULUM = """plant gym:Pendulum-v1
+state q = atan2(obs[1], obs[0]), w = obs[2] / 2 in [-4, 4]
+init w in [-0.5, 0.5]
+horizon 1.5
+prop up = abs(q) < 0.5
+prop slow = abs(w) < 1
+formula {}
+"""
+GYM_FORMULAS = ["F G up", "F[0,1] G[0,0.3] up & G (!slow -> F[0,0.4] slow)"]
+
+
+@pytest.mark.parametrize("variant", range(len(VARIANTS)))
+@pytest.mark.parametrize("formula", GYM_FORMULAS)
+def test_uncompiled_kernel_steps_an_environment_as_its_twin(formula: str, variant: int) -> None:
+    """Pendulum-v1 in the kernel (its twin's physics, the spec's reads of the observation, the
+    environment's resets): the numpy trial's bits, the torque unsaturated too (the environment clips it)."""
+    pytest.importorskip("gymnasium")
+    spec = parse_spec(GYM_PENDULUM.format(formula))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec))
+    same_trials(rs, SacpnSettings(kernel="numpy", rbf=(4, 3), **VARIANTS[variant]), fk.identity, trials=3)
+
+
+def test_compiled_kernel_steps_an_environment_as_its_twin() -> None:
+    pytest.importorskip("gymnasium")
+    pytest.importorskip("numba")
+    spec = parse_spec(GYM_PENDULUM.format(GYM_FORMULAS[1]))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec))
+    same_trials(rs, SacpnSettings(kernel="numpy"), fk.jit, trials=3)
+    agent = Sacpn(rs, SacpnSettings(kernel="auto", rbf=(4, 4)), runs=2, seed=0)
+    assert (agent.kernel, agent.kernel_reason) == ("numba", None)
+
+
 def test_fallback_for_an_environment() -> None:
+    """An environment whose twin has no kernel step (or that has no twin) trains on numpy."""
     pytest.importorskip("gymnasium")
     spec = parse_spec(
-        "plant gym:Pendulum-v1\nstate q = atan2(obs[1], obs[0]), w = obs[2]\nhorizon 1\n"
-        "prop up = abs(q) < 0.5\nformula F G up\n"
+        "plant gym:MountainCarContinuous-v0(dt = 1)\nstate x = obs[0], v = obs[1]\nhorizon 20\n"
+        "prop goal = x > 0.45\nformula F G goal\n"
     )
     agent = Sacpn(compile_spec(spec), SacpnSettings(kernel="auto", rbf=(4, 4)), runs=1, seed=0)
     assert agent.kernel == "numpy"
     if fk.numba_available():
-        assert "environment" in (agent.kernel_reason or "")
+        assert agent.kernel_reason == (
+            "plant 'gym:MountainCarContinuous-v0' is an environment, stepped in numpy: "
+            "the twin of 'MountainCarContinuous-v0' has no kernel step"
+        )
 
 
 @pytest.mark.parametrize(

@@ -94,6 +94,9 @@ class ObsVar:
     read: Callable[[np.ndarray], Any]
     text: str
     """The mapping as the spec wrote it (``obs[0]``), for listings."""
+    expr: Any = None
+    """The mapping's syntax tree (:mod:`mitlc.spec.predicates`), whose variables are ``obs[i]``: the
+    fused kernel's read of one copy is generated from it (:meth:`GymSimulator.kernel_step`)."""
 
 
 @dataclass(frozen=True)
@@ -375,6 +378,7 @@ class GymSimulator:
         self._envs: dict[int, Any] = {}
         self._twins: dict[int, Any] = {}
         self._done: dict[int, np.ndarray] = {}
+        self._actions: dict[int, np.ndarray] = {}
         self.last: dict[int, np.ndarray] = {}
         """The states the last :meth:`reset` of each batch size returned."""
 
@@ -398,7 +402,7 @@ class GymSimulator:
             self._twins[B] = twin_for(self.env_id, args, env)
             self._flat_space = env.single_observation_space
             self._box = isinstance(self._flat_space, gym.spaces.Box)
-            self._action = np.zeros((B, *env.single_action_space.shape), dtype=env.single_action_space.dtype)
+            self._actions[B] = np.zeros((B, *env.single_action_space.shape), dtype=env.single_action_space.dtype)
         return env
 
     def _states(self, obs: Any, B: int) -> np.ndarray:
@@ -456,7 +460,7 @@ class GymSimulator:
         env = self._envs.get(B)
         if env is None or B not in self._done:
             raise TrainingError(f"'{self.env_id}': step before reset (batch of {B})")
-        a = self._action
+        a = self._actions[B]
         if self.box is None:
             a.reshape(B, -1)[:, 0] = np.clip(u, -self.u_max, self.u_max)
         else:
@@ -472,6 +476,31 @@ class GymSimulator:
         live = ~done
         x[live] = new[live]
         done |= np.asarray(terminated, dtype=bool) | np.asarray(truncated, dtype=bool)
+
+    def kernel_step(self, B: int) -> tuple[Callable, np.ndarray, int, int] | str:
+        """The parts of one copy's step for SACPN's fused kernel when ``B`` copies are trained, or why
+        there are none: the twin's :meth:`~mitlc.plants.gym_twins.Twin.kernel_physics` ``(physics,
+        consts, h, k)``, whose constants start with the input bound (the clip of :meth:`step`). The
+        kernel's state of a copy is its ``n`` state variables, then the ``h`` numbers of the twin's
+        (:meth:`kernel_states`); the state variables are read off the observation as :meth:`step` reads them."""
+        self._vec(B)
+        twin = self._twins.get(B)
+        if twin is None:
+            return f"'{self.env_id}' has no numpy twin (mitlc.plants.gym_twins) to step it in the kernel"
+        if self.box is not None:
+            return f"'{self.env_id}' has an action of several entries"
+        parts = twin.kernel_physics()
+        if parts is None:
+            return f"the twin of '{self.env_id}' has no kernel step"
+        physics, consts, h, k = parts
+        return physics, np.concatenate([[self.u_max], consts]), h, k
+
+    def kernel_states(self, x: np.ndarray) -> np.ndarray:
+        """The kernel's states of the copies the last :meth:`reset` of ``len(x)`` copies returned as ``x``:
+        each row ``x``'s, then the twin's hidden state (:meth:`kernel_step`)."""
+        twin = self._twins.get(x.shape[0])
+        assert twin is not None, "kernel_states without a twin"
+        return np.ascontiguousarray(np.concatenate([x, twin.hidden()], axis=1))
 
     def start(self, x0: np.ndarray) -> None:
         """Check that a rollout starts where the copies are (the last reset's states)."""

@@ -17,7 +17,7 @@ environment registered under the id with other code, is stepped through Gymnasiu
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -45,6 +45,18 @@ class Twin:
         raise NotImplementedError
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def kernel_physics(self) -> tuple[Callable, np.ndarray, int, int] | None:
+        """One copy's step for SACPN's fused kernel, as plain Python (compiled by the kernel's jit), or
+        None where the twin has none: ``(physics, consts, h, k)``. ``physics(s, a, c, o)`` steps the copy's
+        hidden state ``s`` (``h`` numbers: :meth:`hidden`) by the action ``a`` (the float32 the vector
+        environment is given) with the constants ``c`` and writes the float64 of its float32 observation
+        (``k`` entries) into ``o``: the numbers of :meth:`step`, to the bit."""
+        return None
+
+    def hidden(self) -> np.ndarray:
+        """The copies' states as :meth:`kernel_physics` steps them, ``(B, h)`` (after :meth:`load`)."""
         raise NotImplementedError
 
 
@@ -78,6 +90,28 @@ class PendulumTwin(Twin):
         obs = np.empty((self.B, 3), dtype=np.float32)
         obs[:, 0], obs[:, 1], obs[:, 2] = np.cos(self.th), np.sin(self.th), self.thdot
         return obs, np.zeros(self.B, dtype=bool)
+
+    def kernel_physics(self) -> tuple[Callable, np.ndarray, int, int]:
+        consts = np.array([self.max_torque, self.c_sin, self.c_u, self.dt, self.max_speed])
+
+        def physics(s: np.ndarray, a: Any, c: np.ndarray, o: np.ndarray) -> None:
+            """:meth:`step` for one copy: ``s = (th, thdot)``; the torque clipped and scaled in float32
+            (NumPy 2's rule for a Python float beside a float32), the rest in float64."""
+            bound = np.float32(c[0])
+            torque = np.minimum(np.maximum(a, -bound), bound)
+            push = np.float32(c[2]) * torque
+            thdot = s[1] + (c[1] * np.sin(s[0]) + np.float64(push)) * c[3]
+            thdot = np.minimum(np.maximum(thdot, -c[4]), c[4])
+            s[0] = s[0] + thdot * c[3]
+            s[1] = thdot
+            o[0] = np.float64(np.float32(np.cos(s[0])))
+            o[1] = np.float64(np.float32(np.sin(s[0])))
+            o[2] = np.float64(np.float32(thdot))
+
+        return physics, consts, 2, 3
+
+    def hidden(self) -> np.ndarray:
+        return np.stack([self.th, self.thdot], axis=1)
 
 
 class MountainCarTwin(Twin):

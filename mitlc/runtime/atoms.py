@@ -25,7 +25,15 @@ import numpy as np
 
 from mitlc.spec import predicates as P
 
-__all__ = ["atom_source", "compile_atoms", "compile_predicate", "pack_atoms", "scalar_atoms"]
+__all__ = [
+    "atom_source",
+    "compile_atoms",
+    "compile_observe",
+    "compile_predicate",
+    "observe_source",
+    "pack_atoms",
+    "scalar_atoms",
+]
 
 
 def compile_predicate(p: P.Pred, columns: Mapping[str, int]) -> Callable[[np.ndarray], np.ndarray | float]:
@@ -177,3 +185,37 @@ def compile_atoms(preds: Sequence[P.Pred], columns: dict[str, int], jit_fn: Call
     atoms = namespace["atoms"]
     atoms.__mitlc_source__ = source  # for mitlc.learn.jitcache, which writes kernels to files
     return jit_fn(atoms)
+
+
+def observe_source(exprs: Sequence[P.Pred], columns: dict[str, int], periodic: Sequence[bool]) -> str:
+    """Source of ``observe(x, out)``: state variable ``i`` of one copy of an environment, ``out[i]``,
+    read off its flattened observation ``x`` by the mapping ``exprs[i]`` (variables ``obs[j]``, by
+    ``columns``), an angle wrapped to ``[-pi, pi)`` where ``periodic[i]``: each node the numpy function
+    :func:`~mitlc.spec.predicates.compile_numpy` applies, the wrap :func:`~mitlc.plants.base.wrap_angle`'s.
+
+    >>> half = P.BinOp("/", P.Var("obs[2]"), P.Num(2.0))
+    >>> print(observe_source([P.Var("obs[0]"), half], {"obs[0]": 0, "obs[2]": 2}, [True, False]))
+    def observe(x, out):
+        out[0] = np.subtract(np.remainder(np.add(x[0], 3.141592653589793), 6.283185307179586), 3.141592653589793)
+        out[1] = np.divide(x[2], 2.0)
+    """
+    pi, two_pi = _literal(math.pi), _literal(2 * math.pi)
+    lines = ["def observe(x, out):"]
+    for i, (e, wrap) in enumerate(zip(exprs, periodic, strict=True)):
+        v = _expr(e, columns)
+        if wrap:
+            v = f"np.subtract(np.remainder(np.add({v}, {pi}), {two_pi}), {pi})"
+        lines.append(f"    out[{i}] = {v}")
+    return "\n".join(lines)
+
+
+def compile_observe(
+    exprs: Sequence[P.Pred], columns: dict[str, int], periodic: Sequence[bool], jit_fn: Callable
+) -> Callable:
+    """The read of :func:`observe_source`, defined (and compiled by ``jit_fn``)."""
+    namespace: dict[str, Any] = {"np": np}
+    source = observe_source(exprs, columns, periodic)
+    exec(compile(source, "<mitlc observe>", "exec"), namespace)  # generated from the tree
+    observe = namespace["observe"]
+    observe.__mitlc_source__ = source
+    return jit_fn(observe)

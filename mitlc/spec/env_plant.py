@@ -147,6 +147,6 @@ def gym_env_plant(tok: Token, params: list, state_lines: list) -> tuple[Plant, d
                     column=ntok.column,
                 )
             read = P.compile_numpy(expr, _columns(index))
-            observe.append(ObsVar(StateVar(name, lo, hi, periodic=angle), read, str(expr)))
+            observe.append(ObsVar(StateVar(name, lo, hi, periodic=angle), read, str(expr), expr))
     plant = gym_plant(env_id, values, observe, dt, info)
     return plant, {**values, "dt": dt}

@@ -32,7 +32,9 @@ There is one algorithm written twice, vectorised and scalar, and nothing may dri
   bits with numpy held to its baseline, ``NPY_DISABLE_CPU_FEATURES``, and a tolerance
   otherwise).
 
-Scope: ODE plants with a ``kernel_step`` (any number of inputs), RBF features without warped axes, nets
+Scope: ODE plants with a ``kernel_step`` (any number of inputs), environments whose numpy twin has a
+step for one copy (:meth:`~mitlc.plants.gym_twins.Twin.kernel_physics`: Pendulum-v1; :func:`env_step`
+reads the state variables off its observation), RBF features without warped axes, nets
 whose transitions and rewards are fully tabulated, with or without timed
 obligations (nested intervals under ``clock = standard``: their sub-nets' tokens
 are moved after each table look-up by a per-run engine over arrays,
@@ -59,6 +61,7 @@ __all__ = [
     "jit",
     "identity",
     "Parts",
+    "env_step",
     "exact_parts",
     "trial_kernel",
     "rbf_kernel",
@@ -359,12 +362,32 @@ def trial_kernel(
     return jit_fn(trial)
 
 
+def env_step(physics: Callable, observe: Callable, n: int, jit_fn: Callable) -> Callable:
+    """One copy's step of an environment with a numpy twin, ``step(x, u, c, w)``
+    (:meth:`~mitlc.plants.gym_env.GymSimulator.kernel_step`): ``x`` is the ``n`` state variables, then
+    the twin's hidden state; ``u`` is clipped to ``[-c[0], c[0]]`` and rounded to the environment's
+    float32 action as :meth:`~mitlc.plants.gym_env.GymSimulator.step` does, the twin's ``physics`` steps
+    the hidden state with ``c[1:]`` and writes the observation into ``w``, and ``observe``
+    (:func:`mitlc.runtime.atoms.compile_observe`) reads the state variables off it."""
+
+    def step(x, u, c, w):
+        a = np.float32(np.minimum(np.maximum(u, -c[0]), c[0]))
+        physics(x[n:], a, c[1:], w)
+        observe(w, x)
+
+    return jit_fn(step)
+
+
 def unsupported(agent: Any) -> str | None:
     """Why the fused kernel cannot train ``agent`` (a :class:`~mitlc.learn.sacpn.Sacpn`), or None."""
     plant = agent.plant
     if plant.stepped:
-        return f"plant '{plant.name}' is an environment (stepped, not integrated)"
-    if plant.kernel_step is None:
+        parts = agent.sim.kernel_step(agent.runs) if hasattr(agent.sim, "kernel_step") else None
+        if parts is None:
+            return f"plant '{plant.name}' is an environment (stepped, not integrated)"
+        if isinstance(parts, str):
+            return f"plant '{plant.name}' is an environment, stepped in numpy: {parts}"
+    elif plant.kernel_step is None:
         return f"plant '{plant.name}' has no kernel_step (its one-step map for one run)"
     rt = agent.runtime
     if rt.timed and rt.compact:

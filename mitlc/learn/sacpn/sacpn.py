@@ -90,7 +90,7 @@ from mitlc.limits import (
 from mitlc.petri.compile import RewardSystem
 from mitlc.plants.base import Plant
 from mitlc.runtime import NetRuntime, obligation_kernel
-from mitlc.runtime.atoms import atom_source, compile_atoms
+from mitlc.runtime.atoms import atom_source, compile_atoms, compile_observe, observe_source
 
 __all__ = ["SacpnSettings", "Sacpn", "Rollout"]
 
@@ -209,7 +209,7 @@ class SacpnSettings(Settings):
     library's (x86-64 up to AVX2; on AVX-512 CPUs within about 1e-13, see
     :mod:`mitlc.learn.sacpn.kernel`; tested); ``simd`` is not exact: within 1e-9 of numpy after
     five trials on the shipped specs (tested), and like any rounding difference this grows as a
-    training goes on. Problems outside the kernels' scope (environments, user plants without
+    training goes on. Problems outside the kernels' scope (environments but Pendulum-v1, user plants without
     ``kernel_step``, untabulated rewards, timed obligations with compact tables) train on numpy
     whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
@@ -567,8 +567,9 @@ class Sacpn:
         from mitlc.learn.sacpn import simd as sk
 
         plant, rt = self.plant, self.runtime
-        assert plant.kernel_step is not None and rt.tables is not None and rt.tables.reward is not None
-        plain_step, pc, nwork = plant.kernel_step(plant, self.params, fk.identity)  # pc, nwork: whatever jit
+        assert rt.tables is not None and rt.tables.reward is not None
+        kernel_step, step_key = self._kernel_step()
+        plain_step, pc, nwork = kernel_step(plant, self.params, fk.identity)  # pc, nwork: whatever jit
         one = self.n_inputs == 1
         timed = bool(rt.timed)  # the obligations' engine is compiled in only where the net has some
 
@@ -578,7 +579,7 @@ class Sacpn:
             return fk.trial_kernel(step, atoms, jit_fn, one, timed)
 
         kind = ("simd", exact_parts) if simd else ()  # the exact kernel's key as before
-        key: tuple = (jit, plant.name, plant.kernel_step, len(plant.state), one, atom_source(rt.preds, rt.columns))
+        key: tuple = (jit, plant.name, step_key, len(plant.state), one, atom_source(rt.preds, rt.columns))
         key += (timed, *kind)
         trial = _KERNELS.get(key)
         if trial is None:
@@ -592,7 +593,7 @@ class Sacpn:
 
                     trial = jitcache.load(plain)
             if trial is None:  # compiled in memory, for this process
-                step = plant.kernel_step(plant, self.params, jit)[0]
+                step = kernel_step(plant, self.params, jit)[0]
                 trial = build(step, compile_atoms(rt.preds, rt.columns, jit), jit)
             _KERNELS[key] = trial
         self._kernel_fn = trial  # the compiled (or plain) trial itself, for inspection
@@ -619,6 +620,7 @@ class Sacpn:
         pen_left = self._pen_left if self._known else np.zeros(self.n_steps + 1)
         u_lo, u_hi = np.ascontiguousarray(self.u_lo, dtype=float), np.ascontiguousarray(self.u_hi, dtype=float)
         obl = rt.obligation_arrays()  # kernel.unsupported: no compact tables with timed obligations
+        sim: Any = self.sim  # an environment's GymSimulator where the plant is stepped
         work = obligation_kernel.scratch(obl)
         first = [True]
 
@@ -636,6 +638,8 @@ class Sacpn:
             pen = self._pen * s_pen if self._known else np.zeros(reward_full.shape[0])
             x, noise = self._trial_start()
             code0 = np.asarray(rt.reset_code(x, obligations=False), dtype=np.int64)  # the kernel places them
+            if plant.stepped:  # an environment's copies: their twin's hidden states after the states
+                x = sim.kernel_states(x)
             ret = np.zeros(self.runs)
             xi = self._actor_rows().reshape(self.runs, self.n_places, self.n_inputs, self.n_features)
             trial(
@@ -650,6 +654,31 @@ class Sacpn:
             return ret
 
         return run
+
+    def _kernel_step(self) -> tuple[Callable, Any]:
+        """The plant's :attr:`~mitlc.plants.base.Plant.kernel_step` and what names it among the compiled
+        kernels; for an environment with a numpy twin, one built from the twin's physics and the spec's
+        reads of the observation (:func:`mitlc.learn.sacpn.kernel.env_step`), named by those reads."""
+        from mitlc.learn.sacpn import kernel as fk
+
+        plant = self.plant
+        if not plant.stepped:
+            assert plant.kernel_step is not None
+            return plant.kernel_step, plant.kernel_step
+        sim: Any = self.sim  # a GymSimulator (kernel.unsupported asked it)
+        parts = sim.kernel_step(self.runs)
+        assert not isinstance(parts, str), parts
+        physics, consts, _, k = parts
+        obs = plant.observation
+        exprs, periodic = [o.expr for o in obs], [o.var.periodic for o in obs]
+        columns = {f"obs[{j}]": j for j in range(k)}
+        n = len(obs)
+
+        def build(plant: Plant, params: Mapping[str, float], jit: Callable) -> tuple[Callable, np.ndarray, int]:
+            observe = compile_observe(exprs, columns, periodic, jit)
+            return fk.env_step(jit(physics), observe, n, jit), consts, k
+
+        return build, ("environment", observe_source(exprs, columns, periodic))
 
     def _trial_start(self) -> tuple[np.ndarray, np.ndarray]:
         """A trial's initial states ``(R, n)`` and exploration ``(N, R, m)``, drawn from the runs'
