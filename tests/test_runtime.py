@@ -569,3 +569,48 @@ def test_shared_tables_are_only_read() -> None:
     finally:
         for a in arrays:
             a.setflags(write=True)
+
+
+def _every_pair(rs, rt) -> list[np.ndarray]:
+    """The reward (or, graded, the charge) and the charge on every (previous, new) pair of the net's
+    markings, evaluated on all n^2 pairs at once: what the tables held before they were built from
+    the distinct rows of the places the reward reads."""
+    from mitlc.runtime.tables import Radix
+
+    radix = Radix(rt.subnet_places, rt.n_places)
+    markings = radix.decode(np.arange(radix.n_codes, dtype=np.int64))
+    n = len(markings)
+    prev, now = np.repeat(markings, n, axis=0), np.tile(markings, (n, 1))
+    from mitlc.petri import reward as R
+
+    charge = [rs.charge] if rs.charge is not None else []
+    exprs = (charge or [R.ZERO]) if rs.grader is not None else [rs.reward, *charge]
+    return [np.asarray(e.evaluate(prev, now), dtype=float).reshape(n, n) for e in exprs]
+
+
+PAIR_SPECS = [
+    ("bench/suite/specs/cartpole_sway.mitl", {}),
+    ("bench/suite/specs/unicycle_patrol_pillar.mitl", {}),
+    ("bench/suite/specs/cart_patrol.mitl", {"violations": "permanent"}),
+    ("specs/pendulum/p4_alternate.mitl", {"violations": "permanent"}),
+    ("specs/pendulum/p3_avoid_speed_limit.mitl", {"reward": "shaped"}),
+    ("specs/pendulum/n3_bounded_response.mitl", {}),
+]
+
+
+@pytest.mark.parametrize(("path", "options"), PAIR_SPECS)
+def test_reward_tables_hold_every_pairs_value(path: str, options: dict) -> None:
+    from pathlib import Path
+
+    from mitlc.spec.parse import load_spec
+
+    spec = load_spec(Path(__file__).resolve().parent.parent / path)
+    rs = compile_spec(spec, CompileOptions.from_spec(spec, **options))
+    rt = NetRuntime(rs)
+    tables = rt.tables
+    assert tables is not None and not rs.net.counters
+    want = _every_pair(rs, rt)
+    got = [tables.charge] if rs.grader is not None else [tables.reward, tables.charge]
+    for w, g in zip(want, got, strict=False):
+        assert np.array_equal(w, g)
+    assert rs.grader is not None or len(np.unique(want[0])) > 2  # a reward that tells moves apart

@@ -106,16 +106,18 @@ def build_tables(rule: Rule, radix: Radix, rs: RewardSystem) -> Tables | None:
         moved = (marked[:, s] == rule.src[t])[:, None] & (marked[:, s] == dst)[None, :]
         for j in fed:
             counter_inc[:, :, j] += moved
-    prev = np.repeat(markings, n_codes, axis=0)
-    now = np.tile(markings, (n_codes, 1))
-    if counters.size:
-        now[:, counters] = counter_inc.reshape(n_codes * n_codes, -1)
     # a graded reward reads the state too: no table of it (the charge reads markings only)
     if graded:
         exprs = [rs.charge if rs.charge is not None else R.ZERO]
     else:
         exprs = [rs.reward] + ([rs.charge] if rs.charge is not None else [])
-    tabs = [np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes) for e in exprs]
+    if not counters.size:
+        tabs = _pair_tables(exprs, markings)
+    else:
+        prev = np.repeat(markings, n_codes, axis=0)
+        now = np.tile(markings, (n_codes, 1))
+        now[:, counters] = counter_inc.reshape(n_codes * n_codes, -1)
+        tabs = [np.asarray(e.evaluate(prev, now), dtype=float).reshape(n_codes, n_codes) for e in exprs]
     if counters.size:  # the table assumes the reward sees counters only through p - ~p
         prev[:, counters] += 7
         now[:, counters] += 7
@@ -130,6 +132,32 @@ def build_tables(rule: Rule, radix: Radix, rs: RewardSystem) -> Tables | None:
         if a is not None:
             a.setflags(write=False)
     return Tables(next_code, reward, charge, marked, counter_inc)
+
+
+def _pair_tables(exprs: list[R.RExpr], markings: np.ndarray) -> list[np.ndarray]:
+    """Each expression's value on every (previous, new) pair of ``markings`` ``(n, places)``, ``(n, n)``.
+
+    An expression reads the markings only through its token counts (:class:`~mitlc.petri.reward.Tokens`),
+    so it is evaluated on the distinct rows of the places they read (the state sub-nets' regions
+    repeat in every combination of the other sub-nets' tokens: the cart-pole's sway, 1728 markings
+    and 11 places read of 21, has far fewer) and spread to every pair: the same operations on
+    the same numbers, without the ``n^2 x places`` arrays (3.6 million rows there)."""
+    read: set[int] = set()
+    stack = list(exprs)
+    while stack:
+        e = stack.pop()
+        if isinstance(e, R.Tokens):
+            read.update(e.places)
+        stack.extend(e.children)
+    cols = sorted(read)
+    uniq, inverse = np.unique(markings[:, cols], axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    u = len(uniq)
+    small = np.zeros((u, markings.shape[1]), dtype=markings.dtype)
+    small[:, cols] = uniq
+    prev, now = np.repeat(small, u, axis=0), np.tile(small, (u, 1))
+    pick = np.ix_(inverse, inverse)
+    return [np.asarray(e.evaluate(prev, now), dtype=float).reshape(u, u)[pick] for e in exprs]
 
 
 def build_compact(rule: Rule, rs: RewardSystem) -> Tables | None:
