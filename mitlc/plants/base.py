@@ -497,8 +497,11 @@ def ode_dynamics(
     names = tuple(names)
 
     def dynamics(x: np.ndarray, u: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
-        # a parameter may be a row of R values, one per copy (mitlc verify --vary): p[i] is then a row too
-        p = np.array(np.broadcast_arrays(*(np.asarray(params[n], dtype=float) for n in names)))
+        values = [params[n] for n in names]
+        if all(type(v) is float for v in values):  # the common case, four RK4 stages a step: no broadcasting
+            p = np.array(values)
+        else:  # a parameter may be a row of R values, one per copy (mitlc verify --vary): p[i] is then a row too
+            p = np.array(np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in values)))
         out = np.empty((x.shape[1], x.shape[0]))
         ode(x.T, u.T, p, out)  # several inputs: u[j] is input j's row, as x[i] is variable i's
         return out.T
