@@ -125,8 +125,6 @@ EQUIVALENT: dict[str, str] = {
     "kernels:until_unbounded:const:1->2:L - 1#2": _BLOCKS,
     "kernels:until:bool:Or->And:hi < lo or lo > L - 1": "an early return for an empty or out-of-trace window:"
     " the general path gives bottom",
-    "kernels:window:bin:Sub->Add:n + w - 1": "one more block of padding (filled with the identity) changes no window's"
-    " value",
     "monitor:_first:const:1->2:b + 1": "_first reads one sample past b only where b is the trace's end or a hit lies"
     " in [a, b]",
     "kernels:until:bin:Sub->Add:L - 1": "L + 1 for L - 1: a window covering the trace meets a U b with F b, which it"

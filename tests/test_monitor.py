@@ -953,3 +953,36 @@ def test_violation_time_and_blame_by_hand(text: str, x: list[float], y: list[flo
     assert not res.satisfied[0]
     assert res.violation_time[0] == when
     assert res.failing[0] == blamed
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.integers(1, 40),
+    st.integers(1, 120),
+    st.integers(0, 130),
+    st.one_of(st.integers(0, 130), st.just(math.inf)),
+    st.sampled_from(["max", "min", "or", "and"]),
+    st.integers(0, 2**32 - 1),
+)
+def test_sliding_window_is_every_windows_reduction(R, L, lo, width, op_name, seed):
+    """kernels.window by doubling against each window reduced on its own: runs x samples of reals with
+    ties, infinities and NaN, or of booleans; windows empty, cut by the trace's end, or past it."""
+    from mitlc.monitor.kernels import window
+
+    rng = np.random.default_rng(seed)
+    op, ident = {"max": (np.maximum, -np.inf), "min": (np.minimum, np.inf)}.get(op_name, (None, None))
+    if op is None:
+        op, ident = (np.logical_or, False) if op_name == "or" else (np.logical_and, True)
+        x = rng.random((R, L)) < rng.random()
+    else:
+        x = rng.integers(-3, 4, size=(R, L)).astype(float)
+        x[rng.random((R, L)) < 0.05] = np.inf
+        x[rng.random((R, L)) < 0.05] = -np.inf
+        x[rng.random((R, L)) < 0.02] = np.nan
+    hi = lo + width
+    want = np.full((R, L), ident, dtype=x.dtype)
+    for k in range(L):
+        a, b = k + lo, int(min(k + hi, L - 1))
+        if a <= L - 1 and b >= a:
+            want[:, k] = op.reduce(x[:, a : b + 1], axis=1)
+    assert np.array_equal(window(x, lo, hi, op, ident), want, equal_nan=True)

@@ -62,9 +62,13 @@ def shift(x: np.ndarray, j: int, fill: Any) -> np.ndarray:
 def window(x: np.ndarray, lo: int, hi: float, op: np.ufunc, ident: Any) -> np.ndarray:
     """``y[:, k] = op(x[:, k+lo .. min(k+hi, N)])``, ``ident`` where the window is empty.
 
-    van Herk/Gil-Werman: blocks as long as the window, a prefix and a suffix
-    scan inside each block, and one ``op`` per output sample; linear in the
-    trace length whatever the window.
+    By doubling (a sparse table): the ``op`` of every ``p`` consecutive samples for ``p = 1, 2, 4, ...``
+    up to the largest power of two ``p <= w``, each one vectorised ``op`` over all runs and samples
+    from the last; then two such windows, overlapping, cover each window of ``w`` samples. ``op`` is
+    idempotent (max, min, or, and), so the overlap changes no value: ``log2(w) + 1`` whole-array
+    operations, where scanning blocks (van Herk/Gil-Werman) took ``op.accumulate``, whose inner loop
+    takes one element at a time (a policy search's 512 rollouts of 181 samples and a window of 81
+    samples: 7 operations).
 
     >>> x = np.array([[3.0, 1.0, 4.0, 1.0, 5.0, 9.0, 2.0]])
     >>> window(x, 1, 3, np.maximum, -np.inf)
@@ -84,13 +88,19 @@ def window(x: np.ndarray, lo: int, hi: float, op: np.ufunc, ident: Any) -> np.nd
     if w == 1:
         out[:, :n] = z
         return out
-    nb = -(-(n + w - 1) // w)
-    padded = np.full((R, nb * w), ident, dtype=x.dtype)
-    padded[:, :n] = z
-    blocks = padded.reshape(R, nb, w)
-    prefix = op.accumulate(blocks, axis=2).reshape(R, nb * w)
-    suffix = op.accumulate(blocks[:, :, ::-1], axis=2)[:, :, ::-1].reshape(R, nb * w)
-    out[:, :n] = op(suffix[:, :n], prefix[:, w - 1 : w - 1 + n])
+    # doubling: y[k] = op(z[k .. k + p - 1]) for p = 1, 2, 4, .. up to the largest power of two <= w, then
+    # two overlapping windows of p samples cover each window of w (the trace padded with the identity)
+    # (two buffers in turn)
+    y = np.full((R, n + w), ident, dtype=x.dtype)
+    y[:, :n] = z
+    spare = np.empty_like(y)
+    p, m = 1, n + w
+    while 2 * p <= w:
+        m -= p
+        op(y[:, :m], y[:, p : p + m], out=spare[:, :m])
+        y, spare = spare, y
+        p *= 2
+    op(y[:, :n], y[:, w - p : w - p + n], out=out[:, :n])
     return out
 
 
