@@ -266,3 +266,35 @@ def test_the_parser_tables_are_kept_on_disk(tmp_path: Path, monkeypatch: pytest.
         assert T._table_file("grammar", "start") is False
     finally:
         T.parser_for.cache_clear()
+
+
+FAULTS = """
+import resource, sys
+import numpy as np
+from mitlc.cli.memory import keep_freed_memory
+from mitlc.monitor.kernels import window
+print(keep_freed_memory() if sys.argv[1] == "1" else False)
+x = np.random.default_rng(0).standard_normal((512, 451))
+window(x, 0, 80, np.maximum, -np.inf)
+r0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+for _ in range(20):
+    window(x, 0, 80, np.maximum, -np.inf)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - r0)
+"""
+
+
+def test_a_training_process_keeps_freed_memory() -> None:
+    """mitlc train, sweep and verify tune glibc's malloc (mitlc.cli.memory): a monitor's windows over
+    512 rollouts, made and dropped 20 times, fault their pages in every time without it, never with it."""
+    import platform
+
+    pytest.importorskip("resource")
+    glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
+    runs = [subprocess.run([sys.executable, "-c", FAULTS, flag], capture_output=True, text=True) for flag in "01"]
+    (off, faults_off), (on, faults_on) = [r.stdout.split() for r in runs]
+    assert off == "False" and on == str(glibc)
+    if glibc:
+        assert int(faults_off) > 5000 and int(faults_on) < 500
+    for name in ("train", "sweep", "verify"):
+        source = (Path(__file__).resolve().parent.parent / "mitlc" / "cli" / f"{name}.py").read_text()
+        assert "keep_freed_memory()" in source, name

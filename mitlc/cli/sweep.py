@@ -164,6 +164,9 @@ def sweep(
 
     SPEC is a .mitl file or the name of a shipped spec (pendulum/p2_avoid; mitlc specs lists them).
     """
+    from mitlc.cli.memory import keep_freed_memory
+
+    keep_freed_memory()
     from mitlc.cli.progress import Progress
     from mitlc.learn.plots import png_bytes
     from mitlc.spec.parse import load_spec

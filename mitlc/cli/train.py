@@ -365,6 +365,9 @@ def train(
     workers,
 ) -> None:
     """Train SACPN controllers on a spec and judge them with the monitor."""
+    from mitlc.cli.memory import keep_freed_memory
+
+    keep_freed_memory()
     from mitlc.cli.report import after_failed_training, after_training, live_curves
     from mitlc.learn.checkpoint import check_against, recorded_spec
     from mitlc.learn.sacpn import SacpnSettings, read_meta

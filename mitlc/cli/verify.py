@@ -369,11 +369,13 @@ def verify(
     exact one-sided Clopper-Pearson lower bound; then --budget rollouts search for the least robust
     scenario. Exit 0: nothing violated and the bound meets --require; 1: a counterexample, or the
     bound falls short; 2: bad input."""
+    from mitlc.cli.memory import keep_freed_memory
     from mitlc.fileio import atomic_write, json_text
     from mitlc.verify import SearchSpace, parse_disturb, parse_vary
     from mitlc.verify.rollout import base_params, check_batched_params, check_plant
     from mitlc.verify.run import verify_policy
 
+    keep_freed_memory()
     policy = _load_policy(policy_dir, spec_path)
     spec = _judging_spec(policy, spec_path)
     plant = spec.plant
