@@ -563,6 +563,9 @@ def render(data: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from mitlc.cli.memory import keep_freed_memory
+
+    keep_freed_memory()  # as mitlc train does: the trainings' wall times are the command's
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--task", action="append", default=[], help="train this task only (repeat for more)")
     ap.add_argument("--half", choices=("tuning", "check"), help="train one half only")
