@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import math
-import xml.etree.ElementTree as ET
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -336,6 +335,8 @@ def to_pnml(rs: RewardSystem) -> str:
     Guards and place kinds travel in ``toolspecific`` elements, which other
     tools ignore.
     """
+    import xml.etree.ElementTree as ET  # here: the tables' key (mitlc check --net) imports this module too
+
     ET.register_namespace("", PNML_NS)
     q = lambda tag: f"{{{PNML_NS}}}{tag}"  # noqa: E731
     root = ET.Element(q("pnml"))
