@@ -38,17 +38,22 @@ R = 30: the numpy trial and the kernel under the standard clock (the obligations
 kernel), against the kernel on the same spec under ``--clock trial`` (no obligations, a smaller
 net), and prints the ratios (the issue's target: standard within 1.5x of trial).
 
-With ``--gym`` it measures SACPN on Gymnasium's ``Pendulum-v1`` (the task suite's two specs on it,
-bench/suite/specs/gym_pendulum_*.mitl) at R = 8 (a design of the race) and 30: the numpy trial (the
-copies stepped by the environment's numpy twin, :mod:`mitlc.plants.gym_twins`) against the fused
-kernel (the twin's physics for one copy, :meth:`~mitlc.plants.gym_twins.Twin.kernel_physics`), and
-prints the ratio. Both include the environment's resets (Gymnasium's, a trial's start). On this
-project's 2-core machine, nothing else running (2026-12-07)::
+With ``--gym`` it measures SACPN on Gymnasium's environments (the task suite's four specs on
+``Pendulum-v1`` and ``MountainCarContinuous-v0``, bench/suite/specs/gym_*.mitl) at R = 8 (a design of
+the race) and 30: the numpy trial (the copies stepped by the environment's numpy twin,
+:mod:`mitlc.plants.gym_twins`) against the fused kernel (the twin's physics for one copy,
+:meth:`~mitlc.plants.gym_twins.Twin.kernel_physics`), and prints the ratio. Both include the
+environment's resets (Gymnasium's, a trial's start). On this project's 2-core machine, nothing else
+running (2026-12-07)::
 
-    gym_pendulum_spin_response R=8  : numpy     14,394  kernel    323,416  kernel / numpy  22.5x
-    gym_pendulum_spin_response R=30 : numpy     29,023  kernel    369,692  kernel / numpy  12.7x
-    gym_pendulum_swing_up_rest R=8  : numpy     23,265  kernel    439,906  kernel / numpy  18.9x
-    gym_pendulum_swing_up_rest R=30 : numpy     49,505  kernel    469,506  kernel / numpy   9.5x
+    gym_pendulum_spin_response   R=8  : numpy   11,517  kernel  342,705  kernel / numpy  29.8x
+    gym_pendulum_spin_response   R=30 : numpy   29,442  kernel  323,018  kernel / numpy  11.0x
+    gym_pendulum_swing_up_rest   R=8  : numpy   22,858  kernel  415,423  kernel / numpy  18.2x
+    gym_pendulum_swing_up_rest   R=30 : numpy   45,220  kernel  461,408  kernel / numpy  10.2x
+    gym_mountain_car_no_wall     R=8  : numpy   19,596  kernel  538,188  kernel / numpy  27.5x
+    gym_mountain_car_no_wall     R=30 : numpy   47,403  kernel  575,096  kernel / numpy  12.1x
+    gym_mountain_car_left_first  R=8  : numpy   16,152  kernel  463,049  kernel / numpy  28.7x
+    gym_mountain_car_left_first  R=30 : numpy   34,964  kernel  368,040  kernel / numpy  10.5x
 
     python bench/bench_train.py [--problem p1] [--trials 40] [--violations permanent] [--kernel] [--nested] [--gym]
 """
@@ -168,7 +173,7 @@ def main() -> None:
     ap.add_argument("--violations", default="off", choices=("off", "permanent", "counted"))
     ap.add_argument("--kernel", action="store_true", help="numpy trial vs the exact and the fast kernel, P1 and P4")
     ap.add_argument("--nested", action="store_true", help="N1..N4: clock standard (kernel, numpy) vs clock trial")
-    ap.add_argument("--gym", action="store_true", help="Pendulum-v1's suite specs: numpy trial vs the kernel")
+    ap.add_argument("--gym", action="store_true", help="the suite's Gymnasium specs: numpy trial vs the kernel")
     args = ap.parse_args()
     if args.gym:
         gym(args.trials)
@@ -274,16 +279,25 @@ def nested(trials: int) -> None:
         )
 
 
+GYM_SPECS = (
+    "gym_pendulum_spin_response",
+    "gym_pendulum_swing_up_rest",
+    "gym_mountain_car_no_wall",
+    "gym_mountain_car_left_first",
+)
+"""The task suite's specs on Gymnasium's environments (bench/suite/specs/)."""
+
+
 def gym(trials: int) -> None:
-    """The suite's Pendulum-v1 specs at R = 8 and 30, best of 3 each: the numpy trial (the twin steps
-    the copies) and the fused kernel (the twin's physics for one copy); the ratio (printed, never asserted)."""
+    """The suite's Gymnasium specs at R = 8 and 30, best of 3 each: the numpy trial (the twin steps the
+    copies) and the fused kernel (the twin's physics for one copy); the ratio (printed, never asserted)."""
     from mitlc.learn.sacpn.kernel import numba_available
 
     if not numba_available():
         print("numba is not installed (pip install 'mitlc[fast]'): nothing to compare")
         return
-    print("Gymnasium's Pendulum-v1, run-steps/s: the numpy trial against the fused kernel")
-    for name in ("gym_pendulum_spin_response", "gym_pendulum_swing_up_rest"):
+    print("Gymnasium's environments, run-steps/s: the numpy trial against the fused kernel")
+    for name in GYM_SPECS:
         spec = load_spec(ROOT / "bench" / "suite" / "specs" / f"{name}.mitl")
         rs = compile_spec(spec, CompileOptions.from_spec(spec))
         for runs in (8, 30):
@@ -291,7 +305,9 @@ def gym(trials: int) -> None:
             agent.train(1)  # compiles (once per process and spec)
             slow, _ = batched(rs, runs, max(2, trials // 10))
             fast, _ = batched(rs, runs, trials * 5, kernel="numba")
-            print(f"{name} R={runs:<3}: numpy {slow:10,.0f}  kernel {fast:10,.0f}  kernel / numpy {fast / slow:5.1f}x")
+            print(
+                f"{name:<28} R={runs:<3}: numpy {slow:8,.0f}  kernel {fast:8,.0f}  kernel / numpy {fast / slow:5.1f}x"
+            )
 
 
 def checkpoint_cost(rs, rate30: float) -> None:

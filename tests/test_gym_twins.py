@@ -128,13 +128,100 @@ def test_the_pendulum_twins_kernel_physics_is_its_step(compiled):
     assert fastest == twin.max_speed  # the clip was exercised
 
 
-def test_only_the_pendulums_twin_steps_in_the_kernel():
-    spec = parse_spec(MC)
-    sim = spec.plant.simulator(spec.plant.params(), {})
-    assert sim.kernel_step(3) == "the twin of 'MountainCarContinuous-v0' has no kernel step"
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_mountain_cars_kernel_physics_is_its_step(compiled):
+    """MountainCarTwin.kernel_physics one copy at a time (plain Python or compiled): the twin's numbers to
+    the bit from float64 states just reset and float32 ones after, with actions inside, on and beyond the
+    bounds, pumping that reaches the goal, the top of the hill and the speed limit, and pushing into the
+    wall; a copy that terminates is stepped no more until it is reset (or told to go on, as the twin does)."""
+    from mitlc.learn.sacpn import kernel as fk
+
+    if compiled:
+        pytest.importorskip("numba")
+    jit = fk.jit if compiled else fk.identity
+    B = 9
+    envs = [gym.make("MountainCarContinuous-v0", disable_env_checker=True) for _ in range(B)]
+    for b, env in enumerate(envs):
+        env.reset(seed=b)
+    twin = MountainCarTwin(envs[0].unwrapped, B)
+    twin.load(envs)
+    physics, consts, h, k = twin.kernel_physics(jit)
+    physics = jit(physics)
+    states = twin.hidden()
+    assert states.shape == (B, h) == (B, 4) and (states[:, 2] == 1.0).all()
+    o = np.empty(k)
+    rng = np.random.default_rng(5)
+    ends = walls = tops = 0
+    fastest = 0.0
+    for step in range(1500):
+        a = rng.uniform(-1.5, 1.5, size=(B, 1))
+        kind = np.arange(B) % 3
+        pump = np.where(states[:, 1] >= 0, 1.0, -1.0) * (1.2 if step % 2 else 1.0)
+        push = np.full(B, 1.0 if step % 7 == 0 else -1.0)
+        a[:, 0] = np.where(kind == 1, pump, np.where(kind == 2, push, a[:, 0]))
+        a = a.astype(np.float32)
+        obs, term = twin.step(a)
+        for b in range(B):
+            assert physics(states[b], a[b, 0], consts, o)
+            assert np.array_equal(o, obs[b].astype(float)) and bool(states[b, 3]) == bool(term[b]), (step, b)
+            if term[b]:
+                before = states[b].copy()
+                assert not physics(states[b], a[b, 0], consts, o)  # ended: not stepped
+                assert np.array_equal(states[b], before)
+                ends += 1
+                if b % 2:  # on past the goal, as the twin goes (the top of the hill, the speed limit)
+                    states[b, 3] = 0.0
+                    continue
+                envs[b].reset(seed=1000 * b + step)
+                twin.load(envs, np.arange(B) == b)
+                states[b] = twin.hidden()[b]
+        assert np.array_equal(states[:, :2], np.stack([twin.pos, twin.vel], axis=1))
+        walls += int((obs[:, 0] == np.float32(-1.2)).sum())
+        tops += int((obs[:, 0] == np.float32(0.6)).sum())
+        fastest = max(fastest, float(np.abs(obs[:, 1]).max()))
+    assert ends > 10 and walls > 0 and tops > 0 and fastest == pytest.approx(0.07)
+
+
+@pytest.mark.parametrize("text", [MC, PEND])
+def test_the_kernels_step_is_the_simulators(text):
+    """kernel.env_step (the twin's physics, the spec's reads of the observation) one copy at a time against
+    GymSimulator.step on all copies, from the same resets, with pumping actions beyond the bounds: the same
+    states to the bit, a mountain car that reaches its goal keeping its state to the end."""
+    from mitlc.learn.sacpn import kernel as fk
+    from mitlc.runtime.atoms import compile_observe
+
+    spec = parse_spec(text)
+    plant = spec.plant
+    sim = plant.simulator(plant.params(), {r.var: (r.lo, r.hi) for r in spec.init})
+    B = 6
+    x = sim.reset([np.random.default_rng(s) for s in range(B)])
+    physics, consts, h, k = sim.kernel_step(B)
+    obs = plant.observation
+    observe = compile_observe(
+        [o.expr for o in obs], {f"obs[{j}]": j for j in range(k)}, [o.var.periodic for o in obs], fk.identity
+    )
+    step = fk.env_step(physics, observe, len(obs), fk.identity)
+    xk = sim.kernel_states(x)
+    w = np.empty(k)
+    u_max = consts[0]
+    for i in range(300):
+        u = np.where(x[:, 1] >= 0, 1.3, -1.3) * u_max * (1 + 0.1 * (i % 3))
+        sim.step(x, u)
+        for b in range(B):
+            step(xk[b], u[b], consts, w)
+        assert np.array_equal(xk[:, : len(obs)], x), i
+    if text is MC:
+        assert sim._done[B].all()  # every copy reached the goal and kept its state
+
+
+def test_the_simulator_gives_the_kernel_its_twins_parts():
     sim = parse_spec(PEND).plant.simulator(parse_spec(PEND).plant.params(), {})
     physics, consts, h, k = sim.kernel_step(3)
     assert (h, k) == (2, 3) and consts[0] == 2.0  # the torque bound first, then the twin's
+    spec = parse_spec(MC)
+    sim = spec.plant.simulator(spec.plant.params(), {})
+    physics, consts, h, k = sim.kernel_step(3)
+    assert (h, k) == (4, 2) and consts[0] == 1.0
 
 
 def test_the_simulator_keeps_an_action_per_batch_size():

@@ -274,6 +274,26 @@ def test_uncompiled_kernel_steps_an_environment_as_its_twin(formula: str, varian
     same_trials(rs, SacpnSettings(kernel="numpy", rbf=(4, 3), **VARIANTS[variant]), fk.identity, trials=3)
 
 
+GYM_MOUNTAIN_CAR = """plant gym:MountainCarContinuous-v0(dt = 1)
+state x = obs[0], v = obs[1]
+horizon 120
+prop goal = x > 0.45
+prop left = x < -0.7
+formula {}
+"""
+
+
+@pytest.mark.parametrize("variant", [0, 2])
+def test_uncompiled_kernel_steps_the_mountain_car_as_its_twin(variant: int) -> None:
+    """MountainCarContinuous-v0 in the kernel: float64 first steps, float32 after, copies that reach the
+    goal keeping their state to the trial's end (large exploration: some do), the numpy trial's bits."""
+    pytest.importorskip("gymnasium")
+    spec = parse_spec(GYM_MOUNTAIN_CAR.format("F[0,60] (left & F[0,60] G goal)"))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec))
+    st = SacpnSettings(kernel="numpy", rbf=(5, 5), sigma_frac=2.0, **VARIANTS[variant])
+    same_trials(rs, st, fk.identity, trials=4, runs=4)
+
+
 def test_compiled_kernel_steps_an_environment_as_its_twin() -> None:
     pytest.importorskip("gymnasium")
     pytest.importorskip("numba")
@@ -282,21 +302,24 @@ def test_compiled_kernel_steps_an_environment_as_its_twin() -> None:
     same_trials(rs, SacpnSettings(kernel="numpy"), fk.jit, trials=3)
     agent = Sacpn(rs, SacpnSettings(kernel="auto", rbf=(4, 4)), runs=2, seed=0)
     assert (agent.kernel, agent.kernel_reason) == ("numba", None)
+    spec = parse_spec(GYM_MOUNTAIN_CAR.format("F G goal"))
+    rs = compile_spec(spec, CompileOptions.from_spec(spec))
+    same_trials(rs, SacpnSettings(kernel="numpy", sigma_frac=2.0), fk.jit, trials=3, runs=4)
 
 
-def test_fallback_for_an_environment() -> None:
-    """An environment whose twin has no kernel step (or that has no twin) trains on numpy."""
+def test_fallback_for_an_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An environment without a numpy twin trains on numpy."""
     pytest.importorskip("gymnasium")
-    spec = parse_spec(
-        "plant gym:MountainCarContinuous-v0(dt = 1)\nstate x = obs[0], v = obs[1]\nhorizon 20\n"
-        "prop goal = x > 0.45\nformula F G goal\n"
-    )
+    from mitlc.plants import gym_twins
+
+    monkeypatch.setattr(gym_twins, "TWINS", {})
+    spec = parse_spec(GYM_MOUNTAIN_CAR.format("F G goal"))
     agent = Sacpn(compile_spec(spec), SacpnSettings(kernel="auto", rbf=(4, 4)), runs=1, seed=0)
     assert agent.kernel == "numpy"
     if fk.numba_available():
         assert agent.kernel_reason == (
             "plant 'gym:MountainCarContinuous-v0' is an environment, stepped in numpy: "
-            "the twin of 'MountainCarContinuous-v0' has no kernel step"
+            "'MountainCarContinuous-v0' has no numpy twin (mitlc.plants.gym_twins) to step it in the kernel"
         )
 
 

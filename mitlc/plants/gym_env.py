@@ -477,19 +477,20 @@ class GymSimulator:
         x[live] = new[live]
         done |= np.asarray(terminated, dtype=bool) | np.asarray(truncated, dtype=bool)
 
-    def kernel_step(self, B: int) -> tuple[Callable, np.ndarray, int, int] | str:
+    def kernel_step(self, B: int, jit: Callable = lambda f: f) -> tuple[Callable, np.ndarray, int, int] | str:
         """The parts of one copy's step for SACPN's fused kernel when ``B`` copies are trained, or why
         there are none: the twin's :meth:`~mitlc.plants.gym_twins.Twin.kernel_physics` ``(physics,
-        consts, h, k)``, whose constants start with the input bound (the clip of :meth:`step`). The
-        kernel's state of a copy is its ``n`` state variables, then the ``h`` numbers of the twin's
-        (:meth:`kernel_states`); the state variables are read off the observation as :meth:`step` reads them."""
+        consts, h, k)`` (the functions it calls compiled by ``jit``), whose constants start with the
+        input bound (the clip of :meth:`step`). The kernel's state of a copy is its ``n`` state
+        variables, then the ``h`` numbers of the twin's (:meth:`kernel_states`); the state variables
+        are read off the observation as :meth:`step` reads them."""
         self._vec(B)
         twin = self._twins.get(B)
         if twin is None:
             return f"'{self.env_id}' has no numpy twin (mitlc.plants.gym_twins) to step it in the kernel"
         if self.box is not None:
             return f"'{self.env_id}' has an action of several entries"
-        parts = twin.kernel_physics()
+        parts = twin.kernel_physics(jit)
         if parts is None:
             return f"the twin of '{self.env_id}' has no kernel step"
         physics, consts, h, k = parts

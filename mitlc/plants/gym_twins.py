@@ -25,6 +25,10 @@ import numpy as np
 __all__ = ["TWINS", "Twin", "PendulumTwin", "MountainCarTwin", "twin_for", "agrees", "compare"]
 
 
+def _identity(f: Callable) -> Callable:
+    return f
+
+
 class Twin:
     """``B`` copies of one environment as arrays: :meth:`load` reads the copies' states after a reset
     (rows where ``mask`` is true), :meth:`step` applies actions ``(B, 1)`` and returns the observations
@@ -47,12 +51,15 @@ class Twin:
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
-    def kernel_physics(self) -> tuple[Callable, np.ndarray, int, int] | None:
-        """One copy's step for SACPN's fused kernel, as plain Python (compiled by the kernel's jit), or
-        None where the twin has none: ``(physics, consts, h, k)``. ``physics(s, a, c, o)`` steps the copy's
-        hidden state ``s`` (``h`` numbers: :meth:`hidden`) by the action ``a`` (the float32 the vector
-        environment is given) with the constants ``c`` and writes the float64 of its float32 observation
-        (``k`` entries) into ``o``: the numbers of :meth:`step`, to the bit."""
+    def kernel_physics(self, jit: Callable = _identity) -> tuple[Callable, np.ndarray, int, int] | None:
+        """One copy's step for SACPN's fused kernel, as plain Python (compiled by the kernel's jit, which
+        compiles the functions it calls), or None where the twin has none: ``(physics, consts, h, k)``.
+        ``physics(s, a, c, o)`` steps the copy's hidden state ``s`` (``h`` numbers: :meth:`hidden`) by
+        the action ``a`` (the float32 the vector environment is given) with the constants ``c``, writes
+        the float64 of its float32 observation (``k`` entries) into ``o`` and returns True: the numbers
+        of :meth:`step`, to the bit. A copy whose episode has ended (a termination) is not stepped
+        again: it returns False, and the trainer keeps the copy's last state
+        (:class:`~mitlc.plants.gym_env.GymSimulator`)."""
         return None
 
     def hidden(self) -> np.ndarray:
@@ -91,12 +98,12 @@ class PendulumTwin(Twin):
         obs[:, 0], obs[:, 1], obs[:, 2] = np.cos(self.th), np.sin(self.th), self.thdot
         return obs, np.zeros(self.B, dtype=bool)
 
-    def kernel_physics(self) -> tuple[Callable, np.ndarray, int, int]:
+    def kernel_physics(self, jit: Callable = _identity) -> tuple[Callable, np.ndarray, int, int]:
         consts = np.array([self.max_torque, self.c_sin, self.c_u, self.dt, self.max_speed])
 
-        def physics(s: np.ndarray, a: Any, c: np.ndarray, o: np.ndarray) -> None:
+        def physics(s: np.ndarray, a: Any, c: np.ndarray, o: np.ndarray) -> bool:
             """:meth:`step` for one copy: ``s = (th, thdot)``; the torque clipped and scaled in float32
-            (NumPy 2's rule for a Python float beside a float32), the rest in float64."""
+            (NumPy 2's rule for a Python float beside a float32), the rest in float64. It never ends."""
             bound = np.float32(c[0])
             torque = np.minimum(np.maximum(a, -bound), bound)
             push = np.float32(c[2]) * torque
@@ -107,6 +114,7 @@ class PendulumTwin(Twin):
             o[0] = np.float64(np.float32(np.cos(s[0])))
             o[1] = np.float64(np.float32(np.sin(s[0])))
             o[2] = np.float64(np.float32(thdot))
+            return True
 
         return physics, consts, 2, 3
 
@@ -153,6 +161,34 @@ class MountainCarTwin(Twin):
         self.fresh[:] = False
         return obs, term
 
+    def kernel_physics(self, jit: Callable = _identity) -> tuple[Callable, np.ndarray, int, int] | None:
+        e = self.e
+        if np.dtype(e.action_space.dtype) != np.float32:  # the rules below are a float32 action's
+            return None
+        consts = np.array(
+            [e.min_action, e.max_action, e.power, e.max_speed, e.min_position, e.max_position]
+            + [e.goal_position, e.goal_velocity]
+        )
+        step64, step32 = jit(_mountain_car_float64), jit(_mountain_car_float32)
+
+        def physics(s: np.ndarray, a: Any, c: np.ndarray, o: np.ndarray) -> bool:
+            """:meth:`step` for one copy: ``s = (pos, vel, fresh, ended)``; the first step after a reset
+            in float64, every later one in float32 (:meth:`_step`'s rules, one number at a time)."""
+            if s[3] != 0.0:
+                return False
+            if s[2] != 0.0:
+                pos, vel, end = step64(s[0], s[1], a, c)
+            else:
+                pos, vel, end = step32(s[0], s[1], a, c)
+            s[0], s[1], s[2], s[3] = pos, vel, 0.0, 1.0 if end else 0.0
+            o[0], o[1] = pos, vel
+            return True
+
+        return physics, consts, 4, 2
+
+    def hidden(self) -> np.ndarray:
+        return np.stack([self.pos, self.vel, self.fresh.astype(float), np.zeros(self.B)], axis=1)
+
     def _step(self, a: np.ndarray, pos: np.ndarray, vel: np.ndarray, T: Any) -> tuple[np.ndarray, ...]:
         """One step of copies whose state has dtype ``T``; ``a`` is the action's first entry."""
         e = self.e
@@ -191,6 +227,66 @@ class MountainCarTwin(Twin):
         v_own = np.where(clipped_v, v_set >= e.goal_velocity, vel >= T(e.goal_velocity))
         v_ok = np.where(wall, e.goal_velocity <= 0, v_own)
         return pos.astype(np.float32), vel.astype(np.float32), at_goal & v_ok
+
+
+def _mountain_car_float64(pos: float, vel: float, a: Any, c: np.ndarray) -> tuple[float, float, bool]:
+    """One step of :meth:`MountainCarTwin._step` from a float64 state (just reset), for one copy: ``a`` the
+    float32 action, ``c`` the constants of :meth:`MountainCarTwin.kernel_physics`. The new position and
+    velocity (float32 values) and whether the episode terminated."""
+    bound = a < np.float32(c[0]) or a > np.float32(c[1])
+    cosine = 0.0025 * np.cos(3.0 * pos)
+    if bound:
+        delta = (c[0] * c[2] if a < np.float32(c[0]) else c[1] * c[2]) - cosine
+    else:  # a float32 force less a double in float32 (a Python float beside a float32)
+        delta = np.float64(np.float32(a * np.float32(c[2])) - np.float32(cosine))
+    vel = vel + delta
+    fast, slow = vel > c[3], vel < -c[3]
+    clipped = fast or slow
+    v_set = c[3] if fast else -c[3] if slow else 0.0
+    if clipped:
+        vel = v_set
+    pos = pos + vel
+    over = pos > c[5]
+    if over:
+        pos = c[5]
+    elif pos < c[4]:
+        pos = c[4]
+    wall = pos == c[4] and ((v_set < 0.0) if clipped else (vel < 0.0))
+    if wall:
+        vel = 0.0
+    at_goal = (c[5] >= c[6]) if over else (pos >= c[6])
+    v_ok = (c[7] <= 0.0) if wall else ((v_set >= c[7]) if clipped else (vel >= c[7]))
+    return np.float64(np.float32(pos)), np.float64(np.float32(vel)), at_goal and v_ok
+
+
+def _mountain_car_float32(pos: float, vel: float, a: Any, c: np.ndarray) -> tuple[float, float, bool]:
+    """:func:`_mountain_car_float64` from a float32 state (every step after the first): the state's
+    arithmetic and comparisons in float32, the environment's Python floats where it clips."""
+    p, v = np.float32(pos), np.float32(vel)
+    bound = a < np.float32(c[0]) or a > np.float32(c[1])
+    cosine = 0.0025 * np.cos(np.float64(np.float32(3.0) * p))
+    if bound:
+        delta = (c[0] * c[2] if a < np.float32(c[0]) else c[1] * c[2]) - cosine
+    else:
+        delta = np.float64(np.float32(a * np.float32(c[2])) - np.float32(cosine))
+    v = v + np.float32(delta)
+    fast, slow = v > np.float32(c[3]), v < np.float32(-c[3])
+    clipped = fast or slow
+    v_set = c[3] if fast else -c[3] if slow else 0.0
+    if clipped:
+        v = np.float32(v_set)
+    p = p + v
+    over = p > np.float32(c[5])
+    if over:
+        p = np.float32(c[5])
+    elif p < np.float32(c[4]):
+        p = np.float32(c[4])
+    wall = p == np.float32(c[4]) and ((v_set < 0.0) if clipped else (v < np.float32(0.0)))
+    if wall:
+        v = np.float32(0.0)
+    at_goal = (c[5] >= c[6]) if over else (p >= np.float32(c[6]))
+    v_ok = (c[7] <= 0.0) if wall else ((v_set >= c[7]) if clipped else (v >= np.float32(c[7])))
+    return np.float64(p), np.float64(v), at_goal and v_ok
 
 
 TWINS: dict[str, type[Twin]] = {"Pendulum-v1": PendulumTwin, "MountainCarContinuous-v0": MountainCarTwin}

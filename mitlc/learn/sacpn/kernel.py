@@ -33,7 +33,8 @@ There is one algorithm written twice, vectorised and scalar, and nothing may dri
   otherwise).
 
 Scope: ODE plants with a ``kernel_step`` (any number of inputs), environments whose numpy twin has a
-step for one copy (:meth:`~mitlc.plants.gym_twins.Twin.kernel_physics`: Pendulum-v1; :func:`env_step`
+step for one copy (:meth:`~mitlc.plants.gym_twins.Twin.kernel_physics`: Pendulum-v1 and
+MountainCarContinuous-v0; :func:`env_step`
 reads the state variables off its observation), RBF features without warped axes, nets
 whose transitions and rewards are fully tabulated, with or without timed
 obligations (nested intervals under ``clock = standard``: their sub-nets' tokens
@@ -368,12 +369,13 @@ def env_step(physics: Callable, observe: Callable, n: int, jit_fn: Callable) -> 
     the twin's hidden state; ``u`` is clipped to ``[-c[0], c[0]]`` and rounded to the environment's
     float32 action as :meth:`~mitlc.plants.gym_env.GymSimulator.step` does, the twin's ``physics`` steps
     the hidden state with ``c[1:]`` and writes the observation into ``w``, and ``observe``
-    (:func:`mitlc.runtime.atoms.compile_observe`) reads the state variables off it."""
+    (:func:`mitlc.runtime.atoms.compile_observe`) reads the state variables off it; a copy whose episode
+    ended keeps its state (``physics`` returns False), as the simulator keeps it."""
 
     def step(x, u, c, w):
         a = np.float32(np.minimum(np.maximum(u, -c[0]), c[0]))
-        physics(x[n:], a, c[1:], w)
-        observe(w, x)
+        if physics(x[n:], a, c[1:], w):  # a copy whose episode ended keeps its last state
+            observe(w, x)
 
     return jit_fn(step)
 

@@ -209,7 +209,7 @@ class SacpnSettings(Settings):
     library's (x86-64 up to AVX2; on AVX-512 CPUs within about 1e-13, see
     :mod:`mitlc.learn.sacpn.kernel`; tested); ``simd`` is not exact: within 1e-9 of numpy after
     five trials on the shipped specs (tested), and like any rounding difference this grows as a
-    training goes on. Problems outside the kernels' scope (environments but Pendulum-v1, user plants without
+    training goes on. Problems outside the kernels' scope (environments without a numpy twin, user plants without
     ``kernel_step``, untabulated rewards, timed obligations with compact tables) train on numpy
     whatever this says (:attr:`Sacpn.kernel_reason`)."""
 
@@ -676,7 +676,8 @@ class Sacpn:
 
         def build(plant: Plant, params: Mapping[str, float], jit: Callable) -> tuple[Callable, np.ndarray, int]:
             observe = compile_observe(exprs, columns, periodic, jit)
-            return fk.env_step(jit(physics), observe, n, jit), consts, k
+            own = physics if jit is fk.identity else sim.kernel_step(self.runs, jit)[0]  # its callees by jit
+            return fk.env_step(jit(own), observe, n, jit), consts, k
 
         return build, ("environment", observe_source(exprs, columns, periodic))
 
