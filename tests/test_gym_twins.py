@@ -92,24 +92,29 @@ def test_a_twin_that_disagrees_is_not_used(monkeypatch):
     assert twin_for("Pendulum-v1", {}, vec) is None
 
 
-@pytest.mark.parametrize("compiled", [False, True])
-def test_the_pendulum_twins_kernel_physics_is_its_step(compiled):
-    """What SACPN's fused kernel steps a copy by (PendulumTwin.kernel_physics, one copy at a time, plain
-    Python or compiled by numba) gives the twin's numbers to the bit: actions beyond the torque's bounds,
-    and pumping that reaches the speed limit."""
+def _twin_in_the_kernel(env_id, twin_cls, B, compiled):
+    """``B`` seeded copies of ``env_id``, their twin, and its kernel physics (compiled by numba or plain)."""
     from mitlc.learn.sacpn import kernel as fk
 
     if compiled:
         pytest.importorskip("numba")
     jit = fk.jit if compiled else fk.identity
-    B = 6
-    envs = [gym.make("Pendulum-v1", disable_env_checker=True) for _ in range(B)]
+    envs = [gym.make(env_id, disable_env_checker=True) for _ in range(B)]
     for b, env in enumerate(envs):
         env.reset(seed=b)
-    twin = PendulumTwin(envs[0].unwrapped, B)
+    twin = twin_cls(envs[0].unwrapped, B)
     twin.load(envs)
-    physics, consts, h, k = twin.kernel_physics()
-    physics = jit(physics)
+    physics, consts, h, k = twin.kernel_physics(jit)
+    return envs, twin, (jit(physics), consts, h, k)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_pendulum_twins_kernel_physics_is_its_step(compiled):
+    """What SACPN's fused kernel steps a copy by (PendulumTwin.kernel_physics, one copy at a time, plain
+    Python or compiled by numba) gives the twin's numbers to the bit: actions beyond the torque's bounds,
+    and pumping that reaches the speed limit."""
+    B = 6
+    _, twin, (physics, consts, h, k) = _twin_in_the_kernel("Pendulum-v1", PendulumTwin, B, compiled)
     states = twin.hidden()
     assert states.shape == (B, h) == (B, 2)
     obs_k = np.empty(k)
@@ -134,19 +139,8 @@ def test_the_mountain_cars_kernel_physics_is_its_step(compiled):
     the bit from float64 states just reset and float32 ones after, with actions inside, on and beyond the
     bounds, pumping that reaches the goal, the top of the hill and the speed limit, and pushing into the
     wall; a copy that terminates is stepped no more until it is reset (or told to go on, as the twin does)."""
-    from mitlc.learn.sacpn import kernel as fk
-
-    if compiled:
-        pytest.importorskip("numba")
-    jit = fk.jit if compiled else fk.identity
     B = 9
-    envs = [gym.make("MountainCarContinuous-v0", disable_env_checker=True) for _ in range(B)]
-    for b, env in enumerate(envs):
-        env.reset(seed=b)
-    twin = MountainCarTwin(envs[0].unwrapped, B)
-    twin.load(envs)
-    physics, consts, h, k = twin.kernel_physics(jit)
-    physics = jit(physics)
+    envs, twin, (physics, consts, h, k) = _twin_in_the_kernel("MountainCarContinuous-v0", MountainCarTwin, B, compiled)
     states = twin.hidden()
     assert states.shape == (B, h) == (B, 4) and (states[:, 2] == 1.0).all()
     o = np.empty(k)
