@@ -155,14 +155,13 @@ def test_designs_raced_in_processes_give_the_race_one_process_gives(case: int) -
         assert (two.searched.name, two.searched.trained) == (one.searched.name, one.searched.trained)
 
 
-def test_a_real_race_in_processes_is_the_race_in_one_to_the_bit() -> None:
-    """A race of the real learners (the search's designs, then SACPN's) on a small spec: two processes
-    give the entries and the winning search's gains and fitness of one."""
+def _mass_damper_learners(search_workers: int = 1):
+    """The real learners on a small mass-damper spec: ``build(settings, runs, seed)`` (SACPN) and
+    ``search(runs, changes)`` (the policy search, judged by the monitor, in ``search_workers`` processes)."""
     from mitlc.cli.train import _monitor_judge
     from mitlc.learn.search import SearchRuns, SearchSettings
     from mitlc.petri.compile import compile_spec
     from mitlc.spec.parse import parse_spec
-    from mitlc.sweep.race import greedy_verdicts
     from mitlc.sweep.task import sacpn_learner
 
     spec = parse_spec(
@@ -174,7 +173,17 @@ def test_a_real_race_in_processes_is_the_race_in_one_to_the_bit() -> None:
         return sacpn_learner(rs, settings, runs, seed)
 
     def search(runs, changes):
-        return SearchRuns(rs, runs, 0, SearchSettings(**changes), _monitor_judge(spec), workers=2)
+        return SearchRuns(rs, runs, 0, SearchSettings(**changes), _monitor_judge(spec), workers=search_workers)
+
+    return build, search
+
+
+def test_a_real_race_in_processes_is_the_race_in_one_to_the_bit() -> None:
+    """A race of the real learners (the search's designs, then SACPN's) on a small spec: two processes
+    give the entries and the winning search's gains and fitness of one."""
+    from mitlc.sweep.race import greedy_verdicts
+
+    build, search = _mass_damper_learners(search_workers=2)
 
     got = [
         race(build, greedy_verdicts, SacpnSettings(kernel="numpy"), 16, 20, 0, search=search, generations=3, workers=w)
@@ -257,23 +266,9 @@ def test_a_warning_raised_in_a_race_process_is_raised_here() -> None:
 def test_the_race_ticks_after_each_trial_and_generation_and_a_tick_that_raises_stops_it() -> None:
     """``tick`` (the command line's: a Ctrl-C Python dropped while modules loaded) is called after every
     generation of a search design and every trial of a SACPN design raced here; what it raises ends the race."""
-    from mitlc.cli.train import _monitor_judge
-    from mitlc.learn.search import SearchRuns, SearchSettings
-    from mitlc.petri.compile import compile_spec
-    from mitlc.spec.parse import parse_spec
     from mitlc.sweep.race import RACE_SHARE, greedy_verdicts
-    from mitlc.sweep.task import sacpn_learner
 
-    spec = parse_spec(
-        "plant mass-damper\ninit q in [-0.5, 0.5], qdot = 0\nhorizon 2\nprop far = abs(q) > 0.8\nformula F[0,1.5] far\n"
-    )
-    rs = compile_spec(spec)
-
-    def build(settings, runs, seed):
-        return sacpn_learner(rs, settings, runs, seed)
-
-    def search(runs, changes):
-        return SearchRuns(rs, runs, 0, SearchSettings(**changes), _monitor_judge(spec))
+    build, search = _mass_damper_learners()
 
     ticks: list[int] = []
 
