@@ -94,7 +94,7 @@ class ObsVar:
     read: Callable[[np.ndarray], Any]
     text: str
     """The mapping as the spec wrote it (``obs[0]``), for listings."""
-    expr: Any = None
+    expr: Any
     """The mapping's syntax tree (:mod:`mitlc.spec.predicates`), whose variables are ``obs[i]``: the
     fused kernel's read of one copy is generated from it (:meth:`GymSimulator.kernel_step`)."""
 

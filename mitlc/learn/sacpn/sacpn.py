@@ -668,7 +668,7 @@ class Sacpn:
         sim: Any = self.sim  # a GymSimulator (kernel.unsupported asked it)
         parts = sim.kernel_step(self.runs)
         assert not isinstance(parts, str), parts
-        physics, consts, _, k = parts
+        _, consts, _, k = parts
         obs = plant.observation
         exprs, periodic = [o.expr for o in obs], [o.var.periodic for o in obs]
         columns = {f"obs[{j}]": j for j in range(k)}
@@ -676,8 +676,8 @@ class Sacpn:
 
         def build(plant: Plant, params: Mapping[str, float], jit: Callable) -> tuple[Callable, np.ndarray, int]:
             observe = compile_observe(exprs, columns, periodic, jit)
-            own = physics if jit is fk.identity else sim.kernel_step(self.runs, jit)[0]  # its callees by jit
-            return fk.env_step(jit(own), observe, n, jit), consts, k
+            physics = sim.kernel_step(self.runs, jit)[0]  # the functions it calls compiled by jit too
+            return fk.env_step(jit(physics), observe, n, jit), consts, k
 
         return build, ("environment", observe_source(exprs, columns, periodic))
 
