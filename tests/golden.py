@@ -133,6 +133,9 @@ def run_case(args: list[str]) -> dict[str, object]:
         metrics = json.loads((out / "metrics.json").read_text())
         for k in VOLATILE:
             metrics.pop(k, None)
+        for design in (metrics.get("race") or {}).get("designs", ()):  # each raced design's time
+            for k in VOLATILE:
+                design.pop(k, None)
         with np.load(out / "params.npz") as z:
             params = {k: z[k] for k in z.files}
         if "meta" in params:  # the checkpoint's record, less its wall time

@@ -18,7 +18,9 @@ rbf_width=W`` of the winner (same seed, same numbers); after a search, exactly `
 --learner search`` with the design's settings (its race runs are runs ``0 .. r - 1`` of the
 training's seed, kept). The first design whose every race run satisfies the spec wins at once, when
 there are :data:`EARLY_WIN_RUNS` race runs: the designs after it are not raced (they could at best tie
-it), which saves most of the race on the tasks a design masters. metrics.json records the race.
+it), which saves most of the race on the tasks a design masters. metrics.json records the race: each
+design's success, the mean return of its greedy rollouts and its wall time (``wall_s``: where a race's
+time went).
 
 Settings the user gives are not raced (:func:`designs`), and the search races only when no SACPN
 setting is given; ``--no-race`` trains SACPN's defaults straight away.
@@ -26,6 +28,7 @@ setting is given; ``--no-race`` trains SACPN's defaults straight away.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -154,6 +157,9 @@ class Entry:
     mean_return: float
     """Mean return of its final greedy rollouts (the tie-break: the exploration's noise left out,
     so designs that explore differently compare on the same footing)."""
+    wall_s: float = field(default=0.0, compare=False)
+    """Seconds its training and judging took (in its own process where the race forked one): where a
+    race's time goes. Not part of the result: races in one process and in several compare equal."""
 
 
 @dataclass(frozen=True)
@@ -188,7 +194,13 @@ class Race:
             **({"generations": self.generations} if self.generations else {}),
             **({"skipped": self.skipped} if self.skipped else {}),
             "designs": [
-                {"name": e.name, "success": e.success, "mean_return": round(e.mean_return, 6)} for e in self.entries
+                {
+                    "name": e.name,
+                    "success": e.success,
+                    "mean_return": round(e.mean_return, 6),
+                    "wall_s": round(e.wall_s, 2),
+                }
+                for e in self.entries
             ],
         }
 
@@ -384,18 +396,19 @@ def _run(
     tick: Callable[[], None] | None = None,
 ) -> Entry:
     """Train one design's ``agent`` for ``trials`` (``tick()`` after each trial or generation) and judge it."""
+    t0 = time.perf_counter()
     try:
         if tick is None:
             agent.train(trials)
         else:
             agent.train(trials, lambda *_: tick())
     except TrainingError:  # every run of the design diverged: it loses (the training says so if it wins)
-        return Entry(name, 0.0, float("-inf"))
+        return Entry(name, 0.0, float("-inf"), time.perf_counter() - t0)
     ok, returns = judge(agent)
     finite = np.asarray(returns, dtype=float)
     finite = finite[np.isfinite(finite)]
     mean = float(finite.mean()) if finite.size else float("-inf")
-    return Entry(name, float(np.mean(np.asarray(ok, dtype=bool))), mean)
+    return Entry(name, float(np.mean(np.asarray(ok, dtype=bool))), mean, time.perf_counter() - t0)
 
 
 def greedy_verdicts(agent: Any) -> tuple[np.ndarray, np.ndarray]:
