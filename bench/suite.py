@@ -198,6 +198,7 @@ def _search_won(name, spec, raced, runs, trials, seed, sets, options, t0, race_s
         )
         rest.train(raced.generations)
         agent = kept.joined(rest)
+    agent.restart_failed(raced.generations)  # as mitlc train: the runs that fail their check searched again
     wall = time.perf_counter() - t0
     judged = _judge(spec, agent.rollout(agent.evaluation_states()))
     failing = [str(f) for f in judged.failing if f is not None]
@@ -221,6 +222,7 @@ def _search_won(name, spec, raced, runs, trials, seed, sets, options, t0, race_s
         "race": raced.record(),
         "failing": {f: failing.count(f) for f in sorted(set(failing))},
         "race_s": round(race_s, 2),
+        "restarted": {"runs": agent.restarted, "kept": agent.kept_restarts},
     }
 
 
@@ -251,6 +253,7 @@ def train_sac_task(job: tuple) -> dict:
     trials = trials or default_trials(agent.n_steps)
     t0 = time.perf_counter()
     agent.train(trials)
+    agent.restart_failed(trials)
     wall = time.perf_counter() - t0
     judged = _judge(spec, agent.rollout(agent.evaluation_states()))
     failing = [str(f) for f in judged.failing if f is not None]
@@ -295,6 +298,7 @@ def train_search_task(job: tuple) -> dict:
     trials = trials or default_generations(agent.n_steps)
     t0 = time.perf_counter()
     agent.train(trials)
+    agent.restart_failed(trials)
     wall = time.perf_counter() - t0
     judged = _judge(spec, agent.rollout(agent.evaluation_states()))
     failing = [str(f) for f in judged.failing if f is not None]
@@ -317,6 +321,7 @@ def train_search_task(job: tuple) -> dict:
         "race": None,
         "failing": {f: failing.count(f) for f in sorted(set(failing))},
         "race_s": 0.0,
+        "restarted": {"runs": agent.restarted, "kept": agent.kept_restarts},
     }
 
 

@@ -263,6 +263,52 @@ def test_a_run_does_not_depend_on_the_runs_beside_it_and_joined_runs_are_one_sea
         head.joined(head)  # not the runs that follow
 
 
+def test_runs_that_fail_their_check_are_searched_again_and_keep_the_better() -> None:
+    """restart_failed: every run's final gains checked from CHECK_STARTS starts of its own; the failed ones
+    (here 1 of 8 after 10 generations) searched again from zero with streams of their own, each keeping the
+    restart where it scores higher on the same starts; the runs that passed left to the bit."""
+    from mitlc.learn.search import CHECK_STARTS
+
+    sr = _runs(EASY, 8, seed=0)
+    sr.train(10)
+    before, weights = sr.check_scores(), sr.weights.copy()
+    assert before.shape == (8, CHECK_STARTS)
+    passed = before.min(axis=1) >= 2.0
+    assert passed.sum() == 7
+    sr.restart_failed(10)
+    failed = [int(i) for i in np.flatnonzero(~passed)]
+    assert sr.restarted == [failed]
+    after = sr.check_scores()
+    for i in range(8):
+        if i in sr.kept_restarts[0]:
+            assert after[i].mean() > before[i].mean() and not np.array_equal(sr.weights[i], weights[i])
+        else:
+            np.testing.assert_array_equal(sr.weights[i], weights[i])
+    assert sr.kept_restarts == [failed]  # the restart passed its check where the first search did not
+    assert (after.min(axis=1) >= 2.0).all()
+    # the restart is the same whatever the processes, and none where restarts=0
+    two = _runs(EASY, 8, seed=0)
+    two.workers = 2
+    two.train(10)
+    two.restart_failed(10)
+    np.testing.assert_array_equal(two.weights, sr.weights)
+    np.testing.assert_array_equal(two.returns, sr.returns)
+    none = _runs(EASY, 8, seed=0, restarts=0)
+    none.train(10)
+    none.restart_failed(10)
+    assert none.restarted == [] and np.array_equal(none.weights, weights)
+
+
+def test_no_run_is_restarted_where_most_runs_fail() -> None:
+    """A design that fails most runs (3 of 8 pass) is not restarted: RESTART_SHARE of them must pass."""
+    sr = _runs(EASY, 8, seed=1)
+    sr.train(10)
+    assert (sr.check_scores().min(axis=1) >= 2.0).sum() == 3
+    weights = sr.weights.copy()
+    sr.restart_failed(10)
+    assert sr.restarted == [] and np.array_equal(sr.weights, weights)
+
+
 def test_mitlc_train_races_the_search_and_trains_it_as_learner_search_would(tmp_path) -> None:
     """The default race: the search's three designs, then SACPN's five; the search wins the cart-pole's
     balance (SACPN learns nothing in 50 trials) and the folder is ``--learner search``'s with the same seed,

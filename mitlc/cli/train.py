@@ -707,24 +707,31 @@ def _search_into(outset, agent, spec, generations, quiet, no_plots, kept=None, r
         interrupt.check()
         bar.update(f"generation {done}/{total}")
 
+    def restarting(done: int, total: int) -> None:
+        interrupt.check()
+        bar.update(f"restarts: generation {done}/{total}")
+
     try:
         interrupt.check()
         if agent is not None:
             agent.train(generations, progress)
+        if kept is not None:
+            agent = kept if agent is None else kept.joined(agent)
+        agent.restart_failed(generations, restarting)  # the runs that failed their check, searched again
     except KeyboardInterrupt:
         bar.close()
         click.echo("interrupted: a search keeps no checkpoint, nothing saved", err=True)
         sys.exit(130)
     bar.close()
-    if kept is not None:
-        agent = kept if agent is None else kept.joined(agent)
     wall = wall_before + time.perf_counter() - start
     files: dict[str, bytes | str] = {FILE: agent.file_bytes()}
     metrics = _runs_outputs(agent, spec, wall, "search", files, plots=not no_plots, raced=raced)
     out = outset.write(files, trial=agent.trial, seed=agent.seed, runs=runs, wall_s=round(wall, 3))
     rate = metrics.get("success_rate")
+    restarted, took = sum(map(len, agent.restarted)), sum(map(len, agent.kept_restarts))
+    again = f" ({restarted} restarted, {took} of them kept the restart)" if restarted else ""
     click.echo(
-        f"{runs} searches x {agent.trial} generations in {wall:.1f} s; "
+        f"{runs} searches x {agent.trial} generations{again} in {wall:.1f} s; "
         f"success rate {rate:.2f} (one evaluation start per run; monitor: {spec.monitor_formula}); results in {out}"
         if rate is not None
         else f"no generations run; results in {out}"
@@ -762,6 +769,9 @@ def _runs_outputs(
     }
     if learner == "search":  # its returns are each generation's best fitness (mitlc.learn.search.scores)
         metrics["returns_are"] = "the best candidate's fitness per generation"
+        # per round, the runs that failed their check after the training and were searched again, and those
+        # that took the restart's gains
+        metrics["restarted"] = {"runs": agent.restarted, "kept": agent.kept_restarts}
     if raced is not None:
         metrics["race"] = raced
     if agent.trial > 0:
