@@ -783,7 +783,8 @@ class SearchRuns:
             self.first + self.runs,
         ):
             raise ValueError("joined: the runs that follow must share the seed, settings and generations")
-        both = SearchRuns(self.rs, self.runs + rest.runs, self.seed, self.settings, self.judge, self.first)
+        workers = max(self.workers, rest.workers)  # what restart_failed trains in (the numbers do not depend on it)
+        both = SearchRuns(self.rs, self.runs + rest.runs, self.seed, self.settings, self.judge, self.first, workers)
         both.weights = np.concatenate([self.weights, rest.weights])
         both.returns = np.concatenate([self.returns, rest.returns])
         both.trial = self.trial
