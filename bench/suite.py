@@ -253,7 +253,6 @@ def train_sac_task(job: tuple) -> dict:
     trials = trials or default_trials(agent.n_steps)
     t0 = time.perf_counter()
     agent.train(trials)
-    agent.restart_failed(trials)
     wall = time.perf_counter() - t0
     judged = _judge(spec, agent.rollout(agent.evaluation_states()))
     failing = [str(f) for f in judged.failing if f is not None]
