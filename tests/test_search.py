@@ -299,6 +299,18 @@ def test_runs_that_fail_their_check_are_searched_again_and_keep_the_better() -> 
     assert none.restarted == [] and np.array_equal(none.weights, weights)
 
 
+def test_a_second_round_restarts_only_the_runs_the_first_left_failing() -> None:
+    """restarts=2: round 2 searches again exactly the runs round 1 restarted and did not improve (their
+    check scores carried from round 1, not rolled out again), and every run kept is one that now passes."""
+    sr = _runs(EASY, 8, seed=2, restarts=2)
+    sr.train(10)
+    sr.restart_failed(10)
+    assert len(sr.restarted) == 2
+    assert sr.restarted[1] == [r for r in sr.restarted[0] if r not in sr.kept_restarts[0]]
+    passed = sr.check_scores().min(axis=1) >= 2.0
+    assert all(passed[r] for rounds in sr.kept_restarts for r in rounds)
+
+
 def test_no_run_is_restarted_where_most_runs_fail() -> None:
     """A design that fails most runs (3 of 8 pass) is not restarted: RESTART_SHARE of them must pass."""
     sr = _runs(EASY, 8, seed=1)

@@ -703,10 +703,10 @@ class SearchRuns:
         others' 2.09, 6 of 30 runs on the suite's catch); a new start usually does not (IPOP-CMA-ES restarts for
         the same reason). A run's restart depends on the others only through the share that passed. ``progress``
         as :meth:`train`'s, counting the restarts' generations."""
-        if generations < 1 or self.judge is None:
+        if generations < 1 or self.judge is None or self.settings.restarts < 1:
             return
+        before = self.check_scores()  # a round changes only the rows that kept a restart: their scores follow
         for k in range(1, self.settings.restarts + 1):
-            before = self.check_scores()
             passed = before.min(axis=1) >= 2.0
             if passed.all() or passed.mean() < RESTART_SHARE:
                 return
@@ -721,6 +721,7 @@ class SearchRuns:
             self.kept_restarts.append([])
             for j, i in enumerate(rows):
                 if after[j].mean() > before[i].mean():
+                    before[i] = after[j]
                     self.weights[i] = again.weights[j]
                     self.returns[i, self.returns.shape[1] - g :] = again.returns[j, again.returns.shape[1] - g :]
                     self.kept_restarts[-1].append(again._ids[j])
@@ -729,9 +730,7 @@ class SearchRuns:
     def evaluation_states(self) -> np.ndarray:
         """One initial state per run, drawn from the ``init`` box by run ``r``'s evaluation stream ``(seed, r, 1)``
         (an environment's copies reset from it)."""
-        return self.sample_init(
-            [np.random.default_rng([self.seed, r, 1]) for r in range(self.first, self.first + self.runs)]
-        )
+        return self.sample_init([np.random.default_rng([self.seed, r, 1]) for r in self.run_ids])
 
     @property
     def runtime(self) -> Any:
