@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mitlc.learn.sacpn import SacpnSettings
-from mitlc.sweep.race import DESIGNS, EARLY_WIN_RUNS, SEARCH_DESIGNS, race
+from mitlc.sweep.race import DESIGNS, EARLY_WIN_RUNS, RESPONSE_DESIGN, SEARCH_DESIGNS, race, search_designs
 
 
 @dataclass
@@ -39,11 +39,12 @@ def _race(
     searching: bool = True,
     runs: int = 30,
     workers: int = 1,
+    searches: tuple = SEARCH_DESIGNS,
 ):
     returns = returns or {}
     made: list[Stand] = []
     sacpn_names = {tuple(sorted(c.items())): n for n, c in DESIGNS}
-    search_names = {tuple(sorted(c.items())): n for n, c in SEARCH_DESIGNS}
+    search_names = {tuple(sorted(c.items())): n for n, c in searches}
 
     def stand(name: str, runs: int) -> Stand:
         ok = success.get(name, (False,) * runs)[:runs]
@@ -73,6 +74,7 @@ def _race(
         search=search if searching else None,
         generations=100,
         workers=workers,
+        search_designs=searches,
     )
     if workers > 1:  # the designs after the first were built in processes of their own: the entries say which raced
         return result, [e.name for e in result.entries]
@@ -300,3 +302,19 @@ def test_the_race_ticks_after_each_trial_and_generation_and_a_tick_that_raises_s
     with pytest.raises(KeyboardInterrupt):
         race(build, greedy_verdicts, settings, 8, 20, 0, search=search, generations=3, tick=interrupted)
     assert len(ticks) == 2  # in the first search design's second generation
+
+
+def test_a_formula_that_asks_for_a_response_races_the_response_design_last_among_the_searches() -> None:
+    """G (a -> F[0,d] b): RESPONSE_DESIGN after SEARCH_DESIGNS and before SACPN's; it wins where only it sweeps
+    (the rest raced for nothing); a formula without a response races SEARCH_DESIGNS alone."""
+    from mitlc.spec.parse import parse_formula
+
+    searches = search_designs(parse_formula("5 * G (lean -> F[0,1] upright) & 10 * G !tipped"))
+    assert searches == (*SEARCH_DESIGNS, RESPONSE_DESIGN)
+    assert search_designs(parse_formula("F[0,4] G up & G (up -> slow)")) == SEARCH_DESIGNS
+    assert search_designs(None) == SEARCH_DESIGNS
+    result, raced = _race({RESPONSE_DESIGN[0]: (True,) * 8}, searches=searches)
+    assert raced == [n for n, _ in SEARCH_DESIGNS] + [RESPONSE_DESIGN[0]]
+    assert result.winner == RESPONSE_DESIGN[0] and result.learner == "search" and result.skipped == len(DESIGNS)
+    result, raced = _race({DESIGNS[1][0]: (True,) * 8}, searches=searches)
+    assert raced == [n for n, _ in searches] + [n for n, _ in DESIGNS[:2]] and result.winner == DESIGNS[1][0]

@@ -52,6 +52,8 @@ __all__ = [
     "search_generations",
     "SEARCH",
     "SEARCH_DESIGNS",
+    "RESPONSE_DESIGN",
+    "search_designs",
 ]
 
 DESIGNS: tuple[tuple[str, dict[str, Any]], ...] = (
@@ -107,6 +109,44 @@ the tuning half's gym_pendulum_swing_up_rest, 8 runs), and as every search's sco
 the others learn (the cart's patrol 0.98 -> 0.91, the cart-pole's lean response 1.00 -> 0.96 over the
 first seeds), so it is raced last, where only tasks no design above sweeps reach it. Each design has
 the search's defaults otherwise."""
+
+RESPONSE_DESIGN: tuple[str, dict[str, Any]] = (
+    f"{SEARCH} products=true popsize=32 score=credit trigger_starts=0.5",
+    {"products": True, "popsize": 32, "score": "credit", "trigger_starts": 0.5},
+)
+"""The search design raced last, after :data:`SEARCH_DESIGNS`, where the formula asks for a response
+(:func:`search_designs`): a violated rollout scored by its credit (each response met 1, missed 0, not
+asked for one half) and its non-vacuous robustness, which scores ``a -> F[0,d] b`` by ``b`` wherever ``a``
+holds (:func:`mitlc.monitor.offline.credit_score`), and half of each generation's training starts drawn
+where a response's trigger holds. The robustness and the violation time pay a search for grazing ``a`` late
+and never going on to ``b``: on the unicycle's patrol every other design learns 0 runs of 90, this one 0.39
+alone (bench/suite/tuning/24-race-fifth-search-credit-trigger-starts.json) and 0.58 with the restarts
+of :data:`mitlc.learn.search.RESTART_SHARE` (35-response-design-restart-share.json)."""
+
+
+def search_designs(formula: Any) -> tuple[tuple[str, dict[str, Any]], ...]:
+    """The search designs raced on ``formula`` (the one the monitor judges), in order: :data:`SEARCH_DESIGNS`,
+    then :data:`RESPONSE_DESIGN` where the formula asks for a response, an implication ``a -> phi`` with a
+    propositional trigger ``a`` and a temporal ``phi`` (a bounded response ``G (a -> F[0,d] b)``).
+
+    >>> from mitlc.spec.parse import parse_formula
+    >>> len(search_designs(parse_formula("G (fast -> F[0,1] !fast) & F G up"))) - len(SEARCH_DESIGNS)
+    1
+    >>> len(search_designs(parse_formula("G (a -> b) & F[0,2] G c"))) - len(SEARCH_DESIGNS)
+    0
+    """
+    from mitlc.spec import ast as A
+
+    temporal = A.Eventually | A.Globally | A.Until | A.Release | A.WeakUntil
+    for node in A.walk(formula) if formula is not None else ():
+        if (
+            isinstance(node, A.Implies)
+            and not any(isinstance(m, temporal) for m in A.walk(node.left))
+            and any(isinstance(m, temporal) for m in A.walk(node.right))
+        ):
+            return (*SEARCH_DESIGNS, RESPONSE_DESIGN)
+    return SEARCH_DESIGNS
+
 
 SEARCH_SHARE = 0.2
 """The search's generations per SACPN trial: a training of the default 500 trials races and trains
@@ -229,11 +269,13 @@ def race(
     generations: int = 0,
     workers: int = 1,
     tick: Callable[[], None] | None = None,
+    search_designs: tuple[tuple[str, dict[str, Any]], ...] = SEARCH_DESIGNS,
 ) -> Race | None:
     """Race :data:`DESIGNS` (less the settings ``given``: :func:`designs`) on ``settings``, and the
     policy search when ``search`` is given, None when one design is left: ``build(settings, runs, seed)``
     makes a SACPN learner, ``search(runs, changes)`` an untrained search of runs ``0 .. runs - 1`` on
-    the training's seed with each of :data:`SEARCH_DESIGNS`'s changes (trained for ``generations``),
+    the training's seed with each of ``search_designs``'s changes (trained for ``generations``; the
+    command line's: :func:`search_designs` of the spec's formula),
     ``judge(learner)`` says which of its runs' final greedy policies satisfy the spec, and their greedy
     rollouts' returns.
 
@@ -250,7 +292,7 @@ def race(
     r = max(1, min(RACE_RUNS, -(-runs // 4)))
     t = max(1, int(round(trials * RACE_SHARE)))
     todo = designs(set(given))
-    searches = SEARCH_DESIGNS if search is not None else ()
+    searches = search_designs if search is not None else ()
     n = len(todo) + len(searches)
     if n < 2:
         return None
