@@ -649,3 +649,33 @@ def test_sb3policy_refuses_what_it_cannot_roll_out() -> None:
     pol = mg.Sb3Policy(_Feedback(space), "pendulum/p1_swing_up", obs_of=obs_of)
     o = pol.observation(np.array([[np.pi / 2, 1.0]]), np.array([[0, 1]]))
     np.testing.assert_allclose(o, [[0.0, 1.0, 1.0, 0.0, 1.0]], atol=1e-7)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_pendulum_reader_reads_each_observation_as_the_batch_does(dtype) -> None:
+    """The wrapper's Pendulum-v1 reader (numpy's arctan2 on arrays of one it keeps) gives, bit for bit, the
+    angle pendulum_v1_state finds for the whole batch at once, wrapped as the reader wraps a periodic
+    variable, and the speed as it is, on 20,000 observations over every angle."""
+    from gymnasium import spaces
+
+    from mitlc.gym.observation import state_reader
+
+    rng = np.random.default_rng(7)
+    theta = rng.uniform(-4.0, 4.0, 20_000)
+    obs = np.stack([np.cos(theta), np.sin(theta), rng.uniform(-8.0, 8.0, theta.size)], axis=1).astype(dtype)
+    space = spaces.Box(-8.0, 8.0, (3,), dtype)
+    read = state_reader(pendulum_v1_state, space, ["q", "qdot"], ["q", "qdot"], np.array([True, False]))
+    got = np.array([read(o) for o in obs])
+    batch = pendulum_v1_state(obs)
+    q = (batch["q"] + math.pi) % (2 * math.pi) - math.pi  # the reader's wrap of a periodic variable
+    assert got[:, 0].tobytes() == q.tobytes()
+    assert got[:, 1].tobytes() == batch["qdot"].astype(float).tobytes()
+
+
+def test_a_dict_observations_marking_is_the_info_marking() -> None:
+    """One copy of the marking a step: the observation's and info's are the same array, equal to the marking."""
+    env = wrapped(verdict="off", truncate_at_horizon=True)
+    env.reset(seed=0)
+    obs, _, _, _, info = env.step(np.array([0.5], dtype=np.float32))
+    assert obs["marking"] is info["marking"]
+    np.testing.assert_array_equal(obs["marking"], env.marking)

@@ -183,13 +183,20 @@ def state_reader(
     if observe is pendulum_v1_state and "q" in column and "qdot" in column and set(needed) <= {"q", "qdot"}:
         # the dict it would give has good keys: its two floats straight into their columns, then checked
         iq, iw, width = column["q"], column["qdot"], len(names)
+        # numpy's arctan2 on arrays of one, kept by this reader: the same loop and numbers as on two
+        # floats, without making arrays of them every sample (0.5 us of the reader's 1.5)
+        sin1, cos1, q1 = np.empty(1), np.empty(1), np.empty(1)
+        arctan2 = np.arctan2
 
         def checked_pendulum(obs: Any) -> list[float]:
-            one = _pendulum_v1_one(obs)
-            if one is None:  # a batch, another dtype: the general path
-                return checked(obs)
+            if type(obs) is not np.ndarray or obs.shape != (3,) or obs.dtype not in _FLOAT_DTYPES:
+                return checked(obs)  # a batch, another dtype: the general path
+            c, sin1[0], thdot = obs.tolist()
+            cos1[0] = c
+            arctan2(sin1, cos1, out=q1)
             x = [math.nan] * width
-            x[iq], x[iw] = one
+            x[iq] = (q1.item() + math.pi) % _TWO_PI - math.pi
+            x[iw] = thdot
             for n, i in checks:
                 if not math.isfinite(x[i]):
                     raise InputError(f"observe gave a non-finite value for '{n}': {x[i]}")

@@ -283,8 +283,9 @@ class MitlRewardWrapper(MitlNetEnv, gym.Wrapper, gym.utils.RecordConstructorArgs
         info = dict(info)
         info["env_reward"] = env_reward
         reward, info = self._net_step(xs, terminated or truncated, info)
-        if self._dict_rows:  # the marking a row of the net's table, no clocks: the observation at once
-            return {"obs": obs, "marking": self.marking}, reward, terminated, truncated, info
+        if self._dict_rows:  # the marking a row of the net's table, no clocks: the observation at once, its
+            # marking the array info["marking"] holds (a copy of the table's row, made once a step)
+            return {"obs": obs, "marking": info["marking"]}, reward, terminated, truncated, info
         return self._observation(obs), reward, terminated, truncated, info
 
     # ------------------------------------------------------------ helpers
