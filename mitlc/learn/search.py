@@ -99,8 +99,8 @@ drawn from the run's own stream ``(seed, r, 3, k)``, apart from its training and
 RESTART_SHARE = 0.1
 """The share of runs that must pass their check for the others to be restarted: a design that passes
 one run in ten can pass, and a restart costs at most one more training of the failed runs; 0.5 held
-back the unicycle patrol's bounded-response design, whose 9 to 12 runs of 30 passing became 19 to 24
-with their restarts (bench/suite/tuning/35-response-design-restart-share.json)."""
+back the unicycle patrol's response design, whose 5 to 12 runs of 30 passing became 16 to 24 with
+their restarts (seeds 0-2, bench/suite/tuning/35-response-design-restart-share.json)."""
 
 
 def default_generations(n_steps: int) -> int:
@@ -159,7 +159,7 @@ class SearchSettings:
     """Rounds of restarts after the training (:meth:`SearchRuns.restart_failed`): a run whose final gains
     fail the spec from any of :data:`CHECK_STARTS` starts of its own is searched again from zero, with
     streams of its own, for as many generations, and keeps the better of the two, where at least
-    :data:`RESTART_SHARE` of the runs pass (a design that fails most runs is not one restarts rescue).
+    :data:`RESTART_SHARE` of the runs pass (a design that passes almost none is not one restarts rescue).
     0: none."""
 
     def check(self) -> None:
