@@ -117,6 +117,19 @@ def test_a_plant_with_two_inputs_gets_one_gain_column_per_input_inside_its_box()
     assert not np.allclose(ro.actions[..., 0], ro.actions[..., 1])
 
 
+@pytest.mark.parametrize("shape", [(1024, 30, 2), (7, 5, 2), (100, 42, 3), (1, 30, 2), (33, 15, 4), (64, 9, 1)])
+def test_gains_times_gives_einsums_numbers_over_the_input_axis(shape) -> None:
+    """The per-input einsums give einsum("bf,bfm->bm")'s numbers to the bit (the search's numbers do not
+    move with it), on features of every size."""
+    from mitlc.learn.search import gains_times
+
+    B, f, m = shape
+    rng = np.random.default_rng(B + f + m)
+    for scale in (1e-3, 1.0, 1e3):
+        phi, w = scale * rng.normal(size=(B, f)), rng.normal(size=(B, f, m))
+        assert gains_times(phi, w).tobytes() == np.einsum("bf,bfm->bm", phi, w).tobytes()
+
+
 def test_the_features_are_centred_on_the_init_box_and_wrap_an_angle() -> None:
     text = "plant pendulum\ninit q in [2.4, pi], qdot = 0\nhorizon 2\nprop up = abs(q) < 0.3\nformula F G up\n"
     sr = _runs(text, 1, spec_scale=False)
