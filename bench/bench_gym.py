@@ -34,7 +34,13 @@ verdict                before       after       after, 3 runs
 ``step``, array monitor   109.7        112.0
 =====================  ===========  ==========  ==================
 
-(before: 10.1-13.3, 13.9-16.7 and 18.0-21.7 over the three runs). Where the net is tabulated and
+(before: 10.1-13.3, 13.9-16.7 and 18.0-21.7 over the three runs).
+
+Measured 2026-12-08 on a quiet 2-core machine, ``--repeat 15``, two runs of this bench on the code
+after (main at 57fac6b: the Pendulum-v1 reader's ``arctan2`` on arrays of one it keeps, one marking
+copy a step) and of the code before (main at 39ca212, in its own process), interleaved, bare step
+10.3-10.5 us: microseconds per step over the bare step, before -> after, ``off`` 3.6 / 3.5 -> 3.0 /
+3.1, ``end`` 5.0 / 5.0 -> 4.4 / 4.6, ``step`` 6.0 / 5.9 -> 5.3 / 5.4. Where the net is tabulated and
 untimed, a step is the propositions as one generated function, two look-ups in nested lists and a
 marking row copied; ``end`` over ``off`` is the verdict of each (violated) 60-step episode by
 :class:`mitlc.monitor.scalar_offline.ScalarTraceMonitor` (about 70 us, against the offline
