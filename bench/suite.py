@@ -108,7 +108,7 @@ def train_task(job: tuple) -> dict:
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
     from mitlc.spec.parse import load_spec
-    from mitlc.sweep.race import greedy_verdicts, race, search_designs, search_generations
+    from mitlc.sweep.race import greedy_verdicts, race, search_designs_for, search_generations
     from mitlc.sweep.task import sacpn_learner
 
     spec = load_spec(spec_path)
@@ -137,7 +137,7 @@ def train_task(job: tuple) -> dict:
         given=given,
         search=searcher if can_search else None,
         generations=search_generations(trials),
-        search_designs=search_designs(spec.monitor_formula),
+        search_designs=search_designs_for(spec.monitor_formula),
         workers=workers,
     )  # as mitlc train
     race_s = time.perf_counter() - t0

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mitlc.learn.sacpn import SacpnSettings
-from mitlc.sweep.race import DESIGNS, EARLY_WIN_RUNS, RESPONSE_DESIGN, SEARCH_DESIGNS, race, search_designs
+from mitlc.sweep.race import DESIGNS, EARLY_WIN_RUNS, RESPONSE_DESIGN, SEARCH_DESIGNS, race, search_designs_for
 
 
 @dataclass
@@ -309,10 +309,10 @@ def test_a_formula_that_asks_for_a_response_races_the_response_design_last_among
     (the rest raced for nothing); a formula without a response races SEARCH_DESIGNS alone."""
     from mitlc.spec.parse import parse_formula
 
-    searches = search_designs(parse_formula("5 * G (lean -> F[0,1] upright) & 10 * G !tipped"))
+    searches = search_designs_for(parse_formula("5 * G (lean -> F[0,1] upright) & 10 * G !tipped"))
     assert searches == (*SEARCH_DESIGNS, RESPONSE_DESIGN)
-    assert search_designs(parse_formula("F[0,4] G up & G (up -> slow)")) == SEARCH_DESIGNS
-    assert search_designs(None) == SEARCH_DESIGNS
+    assert search_designs_for(parse_formula("F[0,4] G up & G (up -> slow)")) == SEARCH_DESIGNS
+    assert search_designs_for(None) == SEARCH_DESIGNS
     result, raced = _race({RESPONSE_DESIGN[0]: (True,) * 8}, searches=searches)
     assert raced == [n for n, _ in SEARCH_DESIGNS] + [RESPONSE_DESIGN[0]]
     assert result.winner == RESPONSE_DESIGN[0] and result.learner == "search" and result.skipped == len(DESIGNS)

@@ -373,7 +373,7 @@ def train(
     from mitlc.learn.sacpn import SacpnSettings, read_meta
     from mitlc.learn.settings import parse_assignments
     from mitlc.petri.compile import CompileOptions, compile_spec
-    from mitlc.sweep.race import greedy_verdicts, race, search_designs, search_generations
+    from mitlc.sweep.race import greedy_verdicts, race, search_designs_for, search_generations
     from mitlc.sweep.task import sacpn_learner
 
     meta = None
@@ -530,7 +530,7 @@ def train(
                         given=chosen,
                         search=searcher,
                         generations=search_generations(trials),
-                        search_designs=search_designs(spec.monitor_formula),
+                        search_designs=search_designs_for(spec.monitor_formula),
                         workers=processes,
                         tick=interrupt.check,  # a Ctrl-C dropped while modules loaded stops the race
                     )

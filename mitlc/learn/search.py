@@ -79,7 +79,8 @@ __all__ = [
     "SearchPolicy",
     "features",
     "scores",
-    "response_triggers",
+    "responses",
+    "implication_triggers",
     "default_generations",
     "load_search",
     "FILE",
@@ -286,26 +287,44 @@ def recurrence_period(formula: Any) -> float | None:
     return best
 
 
-def response_triggers(formula: Any) -> list[Any]:
-    """The propositional antecedents ``a`` of the formula's implications ``a -> ...``, each once, in the
-    order met (no temporal operator in ``a``): where a response is asked for. Empty for None.
+def _temporal(f: Any) -> bool:
+    """Whether the formula ``f`` holds a temporal operator."""
+    from mitlc.spec import ast as A
+
+    temporal = A.Eventually | A.Globally | A.Until | A.Release | A.WeakUntil
+    return any(isinstance(m, temporal) for m in A.walk(f))
+
+
+def implication_triggers(formula: Any) -> list[Any]:
+    """The propositional antecedents ``a`` of the formula's implications ``a -> ...`` (no temporal operator in
+    ``a``), each once, in the order met: where the formula asks for something (:attr:`SearchSettings.trigger_starts`).
+    Empty for None.
 
     >>> from mitlc.spec.parse import parse_formula
-    >>> [str(a) for a in response_triggers(parse_formula("G (fast -> F[0,1] slow) & G ((a & b) -> c) & G (F d -> e)"))]
-    ['fast', 'a & b']
+    >>> [str(a) for a in implication_triggers(parse_formula("G (f -> F[0,1] s) & G ((a & b) -> c) & G (F d -> e)"))]
+    ['f', 'a & b']
     """
     from mitlc.spec import ast as A
 
     found: list[Any] = []
-    temporal = A.Eventually | A.Globally | A.Until | A.Release | A.WeakUntil
     for node in A.walk(formula) if formula is not None else ():
-        if (
-            isinstance(node, A.Implies)
-            and not any(isinstance(m, temporal) for m in A.walk(node.left))
-            and node.left not in found
-        ):
+        if isinstance(node, A.Implies) and not _temporal(node.left) and node.left not in found:
             found.append(node.left)
     return found
+
+
+def responses(formula: Any) -> list[Any]:
+    """The formula's responses: its implications ``a -> phi`` with a propositional trigger ``a`` and a
+    temporal ``phi`` (a bounded response ``G (a -> F[0,d] b)``), in the order met. Empty for None.
+
+    >>> from mitlc.spec.parse import parse_formula
+    >>> [str(r) for r in responses(parse_formula("G (fast -> F[0,1] slow) & G ((a & b) -> c) & G (F d -> F e)"))]
+    ['fast -> F[0,1] slow']
+    """
+    from mitlc.spec import ast as A
+
+    nodes = A.walk(formula) if formula is not None else ()
+    return [n for n in nodes if isinstance(n, A.Implies) and not _temporal(n.left) and _temporal(n.right)]
 
 
 def scores(
@@ -484,9 +503,9 @@ class SearchRuns:
     @property
     def _triggers(self) -> list[Any]:
         """The propositional antecedents of the judged formula's implications (for
-        :attr:`SearchSettings.trigger_starts`: :func:`response_triggers`)."""
+        :attr:`SearchSettings.trigger_starts`: :func:`implication_triggers`)."""
         if not hasattr(self, "_trigger_list"):
-            self._trigger_list = response_triggers(self.spec.monitor_formula)
+            self._trigger_list = implication_triggers(self.spec.monitor_formula)
         return self._trigger_list
 
     def _holds(self, node: Any, x: np.ndarray) -> np.ndarray:

@@ -53,7 +53,7 @@ __all__ = [
     "SEARCH",
     "SEARCH_DESIGNS",
     "RESPONSE_DESIGN",
-    "search_designs",
+    "search_designs_for",
 ]
 
 DESIGNS: tuple[tuple[str, dict[str, Any]], ...] = (
@@ -115,7 +115,7 @@ RESPONSE_DESIGN: tuple[str, dict[str, Any]] = (
     {"products": True, "popsize": 32, "score": "credit", "trigger_starts": 0.5},
 )
 """The search design raced last, after :data:`SEARCH_DESIGNS`, where the formula asks for a response
-(:func:`search_designs`): a violated rollout scored by its credit (each response met 1, missed 0, not
+(:func:`search_designs_for`): a violated rollout scored by its credit (each response met 1, missed 0, not
 asked for one half) and its non-vacuous robustness, which scores ``a -> F[0,d] b`` by ``b`` wherever ``a``
 holds (:func:`mitlc.monitor.offline.credit_score`), and half of each generation's training starts drawn
 where a response's trigger holds. The robustness and the violation time pay a search for grazing ``a`` late
@@ -125,28 +125,21 @@ of :data:`mitlc.learn.search.RESTART_SHARE` (35-response-design-restart-share.js
 at seeds 0-2); no other task of the suite changed where it races."""
 
 
-def search_designs(formula: Any) -> tuple[tuple[str, dict[str, Any]], ...]:
+def search_designs_for(formula: Any) -> tuple[tuple[str, dict[str, Any]], ...]:
     """The search designs raced on ``formula`` (the one the monitor judges), in order: :data:`SEARCH_DESIGNS`,
     then :data:`RESPONSE_DESIGN` where the formula asks for a response, an implication ``a -> phi`` with a
-    propositional trigger ``a`` and a temporal ``phi`` (a bounded response ``G (a -> F[0,d] b)``).
+    propositional trigger ``a`` and a temporal ``phi`` (a bounded response ``G (a -> F[0,d] b)``:
+    :func:`mitlc.learn.search.responses`).
 
     >>> from mitlc.spec.parse import parse_formula
-    >>> len(search_designs(parse_formula("G (fast -> F[0,1] !fast) & F G up"))) - len(SEARCH_DESIGNS)
+    >>> len(search_designs_for(parse_formula("G (fast -> F[0,1] !fast) & F G up"))) - len(SEARCH_DESIGNS)
     1
-    >>> len(search_designs(parse_formula("G (a -> b) & F[0,2] G c"))) - len(SEARCH_DESIGNS)
+    >>> len(search_designs_for(parse_formula("G (a -> b) & F[0,2] G c"))) - len(SEARCH_DESIGNS)
     0
     """
-    from mitlc.spec import ast as A
+    from mitlc.learn.search import responses
 
-    temporal = A.Eventually | A.Globally | A.Until | A.Release | A.WeakUntil
-    for node in A.walk(formula) if formula is not None else ():
-        if (
-            isinstance(node, A.Implies)
-            and not any(isinstance(m, temporal) for m in A.walk(node.left))
-            and any(isinstance(m, temporal) for m in A.walk(node.right))
-        ):
-            return (*SEARCH_DESIGNS, RESPONSE_DESIGN)
-    return SEARCH_DESIGNS
+    return (*SEARCH_DESIGNS, RESPONSE_DESIGN) if responses(formula) else SEARCH_DESIGNS
 
 
 SEARCH_SHARE = 0.2
@@ -276,7 +269,7 @@ def race(
     policy search when ``search`` is given, None when one design is left: ``build(settings, runs, seed)``
     makes a SACPN learner, ``search(runs, changes)`` an untrained search of runs ``0 .. runs - 1`` on
     the training's seed with each of ``search_designs``'s changes (trained for ``generations``; the
-    command line's: :func:`search_designs` of the spec's formula),
+    command line's: :func:`search_designs_for` of the spec's formula),
     ``judge(learner)`` says which of its runs' final greedy policies satisfy the spec, and their greedy
     rollouts' returns.
 
