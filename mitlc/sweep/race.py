@@ -120,7 +120,7 @@ asked for one half) and its non-vacuous robustness, which scores ``a -> F[0,d] b
 holds (:func:`mitlc.monitor.offline.credit_score`), and half of each generation's training starts drawn
 where a response's trigger holds. The robustness and the violation time pay a search for grazing ``a`` late
 and never going on to ``b``: on the unicycle's patrol every other design learns 0 runs of 90, this one 0.39
-alone (bench/suite/tuning/24-race-fifth-search-credit-trigger-starts.json) and 0.65 with the restarts
+alone (bench/suite/tuning/24-race-fifth-search-credit-trigger-starts.json) and 0.66 with the restarts
 of :data:`mitlc.learn.search.RESTART_SHARE` (35-response-design-restart-share.json: 0.80, 0.63, 0.53
 at seeds 0-2); no other task of the suite changed where it races."""
 
