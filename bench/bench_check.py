@@ -181,14 +181,12 @@ def startup(tmp: Path, repeat: int, readers: list[str]) -> None:
         "check, 61 rows": lambda: run_check(small, readers[0])[0],
     }
     # what check's own libraries cost to import, nothing of mitlc's: the least a check built on them can take
-    for mods in ("numpy, click", "numpy, click, lark"):
+    libraries = ["numpy, click", "numpy, click, lark"] + (
+        ["numpy, click, lark, pyarrow.csv"] if "pyarrow" in readers else []
+    )
+    for mods in libraries:
         runs[f"python -c 'import {mods}'"] = lambda m=mods: timed(
             lambda: subprocess.run([sys.executable, "-c", f"import {m}"], check=True), 1
-        )
-    if "pyarrow" in readers:
-        mods = "numpy, click, lark, pyarrow.csv"
-        runs[f"python -c 'import {mods}'"] = lambda: timed(
-            lambda: subprocess.run([sys.executable, "-c", f"import {mods}"], check=True), 1
         )
     for reader in readers:
         runs[f"check, 100k rows, {reader}"] = lambda r=reader: run_check(big, r)[0]

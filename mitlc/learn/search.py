@@ -295,6 +295,14 @@ def _temporal(f: Any) -> bool:
     return any(isinstance(m, temporal) for m in A.walk(f))
 
 
+def _implications(formula: Any) -> list[Any]:
+    """The formula's implications whose antecedent holds no temporal operator, in the order met (none for None)."""
+    from mitlc.spec import ast as A
+
+    nodes = A.walk(formula) if formula is not None else ()
+    return [node for node in nodes if isinstance(node, A.Implies) and not _temporal(node.left)]
+
+
 def implication_triggers(formula: Any) -> list[Any]:
     """The propositional antecedents ``a`` of the formula's implications ``a -> ...`` (no temporal operator in
     ``a``), each once, in the order met: where the formula asks for something (:attr:`SearchSettings.trigger_starts`).
@@ -304,11 +312,9 @@ def implication_triggers(formula: Any) -> list[Any]:
     >>> [str(a) for a in implication_triggers(parse_formula("G (f -> F[0,1] s) & G ((a & b) -> c) & G (F d -> e)"))]
     ['f', 'a & b']
     """
-    from mitlc.spec import ast as A
-
     found: list[Any] = []
-    for node in A.walk(formula) if formula is not None else ():
-        if isinstance(node, A.Implies) and not _temporal(node.left) and node.left not in found:
+    for node in _implications(formula):
+        if node.left not in found:
             found.append(node.left)
     return found
 
@@ -321,10 +327,7 @@ def responses(formula: Any) -> list[Any]:
     >>> [str(r) for r in responses(parse_formula("G (fast -> F[0,1] slow) & G ((a & b) -> c) & G (F d -> F e)"))]
     ['fast -> F[0,1] slow']
     """
-    from mitlc.spec import ast as A
-
-    nodes = A.walk(formula) if formula is not None else ()
-    return [n for n in nodes if isinstance(n, A.Implies) and not _temporal(n.left) and _temporal(n.right)]
+    return [node for node in _implications(formula) if _temporal(node.right)]
 
 
 def scores(
