@@ -64,6 +64,24 @@ def test_the_first_plain_line_has_no_eta_when_it_is_the_first_step():
     assert "ETA" not in lines[0] and lines[1].endswith("ETA 00:00")
 
 
+def test_steps_added_on_the_way_extend_the_count_and_its_percentages():
+    # a search's restarts: 40 generations planned, 20 more once the first search is judged
+    out = io.StringIO()
+    p = Progress(40, desc="d", unit="generation", stream=out)
+    for _ in range(40):
+        p.update()
+    p.extend(20)
+    for g in range(20):
+        p.update(f"restarts: generation {g + 1}/20")
+    p.close()
+    lines = out.getvalue().splitlines()
+    counts = [re.match(r"d: generation (\d+)/(\d+) \((\d+)%\)", line).groups() for line in lines]
+    assert counts[19] == ("40", "40", "100") and counts[20] == ("42", "60", "70")
+    assert counts[-1] == ("60", "60", "100") and lines[-1].endswith("ETA 00:00")
+    assert len(lines) == 20 + 7  # one line a 5 % of 60 from 70 % on: 42, 45, ..., 60
+    assert all(int(n) <= int(total) for n, total, _ in counts)
+
+
 def test_quiet_and_no_trials_write_nothing():
     assert _lines(40, quiet=True) == []
     assert _lines(0) == []

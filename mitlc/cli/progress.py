@@ -152,6 +152,15 @@ class Progress:
         self.stream.write(self.line(postfix, now) + "\n")
         self.stream.flush()
 
+    def extend(self, more: int) -> None:
+        """``more`` steps to do after the ``total`` planned (a search's restarts, planned once the first
+        search is judged): the count, the percentage and the ETA go on over the new total."""
+        self.total += int(more)
+        self._shown = self._mark(self.n)
+        if self._bar is not None:
+            self._bar.total = self.total
+            self._bar.refresh()
+
     def line(self, postfix: str, now: float) -> str:
         """The plain line of the step just done."""
         from tqdm import tqdm

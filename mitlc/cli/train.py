@@ -701,15 +701,17 @@ def _search_into(outset, agent, spec, generations, quiet, no_plots, kept=None, r
     runs = (0 if agent is None else agent.runs) + (0 if kept is None else kept.runs)
     stem = Path(spec.path or "spec").stem
     todo = generations if agent is not None else 0
-    bar = Progress(todo, 0, desc=stem, quiet=quiet)
+    bar = Progress(todo, 0, desc=stem, unit="generation", quiet=quiet)
     start = time.perf_counter()
 
     def progress(done: int, total: int) -> None:
         interrupt.check()
-        bar.update(f"generation {done}/{total}")
+        bar.update()
 
     def restarting(done: int, total: int) -> None:
         interrupt.check()
+        if done == 1:  # the restarts' generations were not in the bar's total: they are now
+            bar.extend(total)
         bar.update(f"restarts: generation {done}/{total}")
 
     try:
