@@ -163,6 +163,23 @@ def test_a_satisfied_rollout_outscores_any_violated_one_and_later_or_nearer_is_b
     assert v_later >= vio >= v_worse
 
 
+def test_miss_weight_weighs_the_robustness_beside_the_violation_time() -> None:
+    """A violated rollout scores ``t_v / T + w tanh(rho)``: with equal violation times the order is the
+    robustness's whatever ``w`` (CMA-ES ranks), and a small ``w`` lets a later violation outrank a nearer one."""
+    T, rho, tv = 10.0, np.array([-0.05, -1.5]), np.array([4.0, 5.0])  # hovering below a trigger; tripping it
+    for w in (1.0, 0.1):
+        (a, b) = scores(np.array([False, False]), rho, tv, T, miss_weight=w)
+        assert (a, b) == pytest.approx((0.4 + w * np.tanh(-0.05), 0.5 + w * np.tanh(-1.5)), abs=1e-15)
+        same = scores(np.array([False, False]), rho, np.array([4.0, 4.0]), T, miss_weight=w)
+        assert same[0] > same[1]
+    assert scores(np.array([False] * 2), rho, tv, T)[0] > scores(np.array([False] * 2), rho, tv, T)[1]
+    assert (
+        scores(np.array([False] * 2), rho, tv, T, miss_weight=0.1)[0]
+        < scores(np.array([False] * 2), rho, tv, T, miss_weight=0.1)[1]
+    )
+    assert SearchSettings.from_dict({"popsize": 16}).miss_weight == 1.0  # a file from before the setting
+
+
 def test_what_it_cannot_search_is_one_line() -> None:
     with pytest.raises(InputError, match="names no plant"):
         SearchRuns(compile_spec(parse_spec("prop up = abs(q) < 0.2\nhorizon 2\nformula F G up\n")), 2, 0)
@@ -173,6 +190,7 @@ def test_what_it_cannot_search_is_one_line() -> None:
         ({"starts": 0}, "starts"),
         ({"sigma0": -1.0}, "sigma0"),
         ({"score": "max"}, "score must be one of mean, min"),
+        ({"miss_weight": 0.0}, "miss_weight must be a positive number"),
     ):
         with pytest.raises(InputError, match=what) as info:
             _runs(EASY, 1, **bad)

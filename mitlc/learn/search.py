@@ -156,6 +156,12 @@ class SearchSettings:
     """Whether the state features are quadratic (:func:`state_features`): an angle as its sine and
     cosine, and the products of every pair, so that a bearing to a point, an energy or a switching
     surface is one weighted sum."""
+    miss_weight: float = 1.0
+    """The weight ``w`` of a violated rollout's robustness (``score=min``; its averaged robustness, ``score=mean``)
+    beside its violation time: ``t_v / T + w tanh(rho)`` (:func:`scores`). Where violation times tie, CMA-ES
+    ranks the same whatever ``w``; a small one lets a later violation outrank a nearer one. 0.1 for every search
+    design cost the unicycle's corridor, which a robot standing still in it violates last (0.96 -> 0.43 over
+    seeds 0-2 on the tuning half: bench/suite/tuning/37-miss-weight-0.1.json), so it stays 1."""
     restarts: int = 1
     """Rounds of restarts after the training (:meth:`SearchRuns.restart_failed`): a run whose final gains
     fail the spec from any of :data:`CHECK_STARTS` starts of its own is searched again from zero, with
@@ -178,6 +184,8 @@ class SearchSettings:
             raise InputError(f"score must be one of {', '.join(SCORES)}, got {self.score!r}", file="--set")
         if not (np.isfinite(self.trigger_starts) and 0.0 <= self.trigger_starts <= 1.0):
             raise InputError(f"trigger_starts must be a share in [0, 1], got {self.trigger_starts}", file="--set")
+        if not (np.isfinite(self.miss_weight) and self.miss_weight > 0):
+            raise InputError(f"miss_weight must be a positive number, got {self.miss_weight}", file="--set")
         if self.restarts < 0:
             raise InputError(f"restarts must be at least 0, got {self.restarts}", file="--set")
         if not (np.isfinite(self.scale_floor) and self.scale_floor > 0):
@@ -190,7 +198,7 @@ class SearchSettings:
     def from_dict(cls, d: dict[str, Any]) -> SearchSettings:
         names = {f.name for f in fields(cls)}
         # a file from before a setting existed was trained without it
-        d = {"spec_scale": False, "period": 0.0, "score": "min", "restarts": 0, **d}
+        d = {"spec_scale": False, "period": 0.0, "score": "min", "restarts": 0, "miss_weight": 1.0, **d}
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
@@ -337,9 +345,11 @@ def scores(
     horizon: float,
     near: np.ndarray | None = None,
     credit: tuple[np.ndarray, np.ndarray] | None = None,
+    miss_weight: float = 1.0,
 ) -> np.ndarray:
-    """Each rollout's score (the module's text): satisfied ``2 + tanh(rho)``, violated ``t_v / T + tanh(rho)``,
-    or with ``near`` (the averaged robustness, ``score=mean``) violated ``t_v / T + tanh(near)`` (below 2 still),
+    """Each rollout's score (the module's text): satisfied ``2 + tanh(rho)``, violated ``t_v / T + w tanh(rho)``
+    (``w``: ``miss_weight``), or with ``near`` (the averaged robustness, ``score=mean``) violated
+    ``t_v / T + w tanh(near)`` (below 2 still),
     or with ``credit`` (the credit ``c`` and the non-vacuous robustness ``n``, ``score=credit``) violated
     ``c + n / (1 + |n|)`` (in ``[-1, 1]``: no violation time).
 
@@ -359,7 +369,7 @@ def scores(
         c = np.nan_to_num(np.asarray(credit[0], dtype=float), nan=0.0)
         n = np.nan_to_num(np.asarray(credit[1], dtype=float), nan=-np.inf, posinf=1e300, neginf=-1e300)
         return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), c + n / (1.0 + np.abs(n)))
-    return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), late + miss)
+    return np.where(satisfied, 2.0 + np.tanh(np.maximum(rho, 0.0)), late + miss_weight * miss)
 
 
 class _Episode:
@@ -602,7 +612,15 @@ class SearchRuns:
             credit = getattr(judge, "credit", lambda states, dt: None)(states, self.dt)
             if credit is None:
                 raise TrainingError("the search's judge gives no credit (score=credit)")
-        return scores(verdict.satisfied, verdict.robustness, verdict.violation_time, self.episode.horizon, near, credit)
+        return scores(
+            verdict.satisfied,
+            verdict.robustness,
+            verdict.violation_time,
+            self.episode.horizon,
+            near,
+            credit,
+            self.settings.miss_weight,
+        )
 
     def train(self, trials: int, progress: Callable[[int, int], None] | None = None) -> None:
         """``trials`` generations of every run's search; ``progress(done, total)`` after each.
