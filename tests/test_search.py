@@ -357,7 +357,8 @@ def test_no_run_is_restarted_where_too_few_runs_pass(monkeypatch) -> None:
     assert sr.restarted == [] and np.array_equal(sr.weights, weights)
     monkeypatch.setattr(search, "RESTART_SHARE", 0.1)
     sr.restart_failed(10)
-    assert sr.restarted == [[int(r) for r in np.flatnonzero(~passed)]]
+    assert sr.restarted[0] == [int(r) for r in np.flatnonzero(~passed)]
+    assert 1 <= len(sr.restarted) <= sr.settings.restarts == 3  # the rounds after: the runs still failing
 
 
 def test_no_run_is_restarted_where_none_passes() -> None:
