@@ -172,11 +172,10 @@ def test_miss_weight_weighs_the_robustness_beside_the_violation_time() -> None:
         assert (a, b) == pytest.approx((0.4 + w * np.tanh(-0.05), 0.5 + w * np.tanh(-1.5)), abs=1e-15)
         same = scores(np.array([False, False]), rho, np.array([4.0, 4.0]), T, miss_weight=w)
         assert same[0] > same[1]
-    assert scores(np.array([False] * 2), rho, tv, T)[0] > scores(np.array([False] * 2), rho, tv, T)[1]
-    assert (
-        scores(np.array([False] * 2), rho, tv, T, miss_weight=0.1)[0]
-        < scores(np.array([False] * 2), rho, tv, T, miss_weight=0.1)[1]
-    )
+    hover, trip = scores(np.array([False, False]), rho, tv, T)
+    assert hover > trip  # w = 1: hovering short of the trigger outranks tripping it
+    hover, trip = scores(np.array([False, False]), rho, tv, T, miss_weight=0.1)
+    assert hover < trip  # w = 0.1: the later violation outranks it
     assert SearchSettings.from_dict({"popsize": 16}).miss_weight == 1.0  # a file from before the setting
 
 

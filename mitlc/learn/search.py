@@ -99,7 +99,7 @@ CHECK_STARTS = 8
 drawn from the run's own stream ``(seed, r, 3, k)``, apart from its training and evaluation starts."""
 RESTART_SHARE = 0.1
 """The share of runs that must pass their check for the others to be restarted: a design that passes
-one run in ten can pass, and a restart costs at most one more training of the failed runs; 0.5 held
+one run in ten can pass, and a round of restarts costs at most one more training of the failed runs; 0.5 held
 back the unicycle patrol's response design, whose 5 to 12 runs of 30 passing became 16 to 24 with
 their restarts (seeds 0-2, bench/suite/tuning/35-response-design-restart-share.json)."""
 
