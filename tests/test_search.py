@@ -167,15 +167,15 @@ def test_miss_weight_weighs_the_robustness_beside_the_violation_time() -> None:
     """A violated rollout scores ``t_v / T + w tanh(rho)``: with equal violation times the order is the
     robustness's whatever ``w`` (CMA-ES ranks), and a small ``w`` lets a later violation outrank a nearer one."""
     T, rho, tv = 10.0, np.array([-0.05, -1.5]), np.array([4.0, 5.0])  # hovering below a trigger; tripping it
+    scored = {}
     for w in (1.0, 0.1):
-        (a, b) = scores(np.array([False, False]), rho, tv, T, miss_weight=w)
-        assert (a, b) == pytest.approx((0.4 + w * np.tanh(-0.05), 0.5 + w * np.tanh(-1.5)), abs=1e-15)
+        hover, trip = scored[w] = scores(np.array([False, False]), rho, tv, T, miss_weight=w)
+        assert (hover, trip) == pytest.approx((0.4 + w * np.tanh(-0.05), 0.5 + w * np.tanh(-1.5)), abs=1e-15)
         same = scores(np.array([False, False]), rho, np.array([4.0, 4.0]), T, miss_weight=w)
         assert same[0] > same[1]
-    hover, trip = scores(np.array([False, False]), rho, tv, T)
-    assert hover > trip  # w = 1: hovering short of the trigger outranks tripping it
-    hover, trip = scores(np.array([False, False]), rho, tv, T, miss_weight=0.1)
-    assert hover < trip  # w = 0.1: the later violation outranks it
+    assert scored[1.0][0] > scored[1.0][1]  # w = 1: hovering short of the trigger outranks tripping it
+    assert scored[0.1][0] < scored[0.1][1]  # w = 0.1: the later violation outranks it
+    np.testing.assert_array_equal(scores(np.array([False, False]), rho, tv, T), scored[1.0])  # w = 1: the default
     assert SearchSettings.from_dict({"popsize": 16}).miss_weight == 1.0  # a file from before the setting
 
 
